@@ -1,0 +1,1 @@
+"""isaac_runtime: the back end. IR -> plan -> step loop -> outputs."""
