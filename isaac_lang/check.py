@@ -1,0 +1,40 @@
+"""Stage 3, check: rules that look across declarations, on the lowered IR. Each problem names its source."""
+from __future__ import annotations
+
+import math
+
+from . import ir
+from .diagnostics import Reporter, SourcePos
+
+
+def check(scene: ir.Scene, reporter: Reporter) -> list[str]:
+    """Record errors in reporter; return warnings (strings) that do not stop a run."""
+    warnings: list[str] = []
+    for body in scene.bodies:
+        if body.motion == "dynamic" and body.inertia is None:
+            reporter.error(f"body `{body.name}` needs an `inertia` (its shape gives none)", _pos(body.source),
+                           "write `inertia (Ixx, Iyy, Izz) kg*m2`")
+    for constraint in scene.constraints:
+        if constraint.start >= scene.time.end:
+            warnings.append(f"{constraint.source}: constraint `{constraint.name}` starts after the scene ends")
+    for exclusion in scene.exclusions:
+        if len(set(exclusion.bodies)) != len(exclusion.bodies):
+            reporter.error("a body is named twice in `exclude`", _pos(exclusion.source))
+    for sound in scene.sounds:
+        if sound.trigger == "time" and not (scene.time.start <= sound.time <= scene.time.end):
+            warnings.append(f"{sound.source}: sound `{sound.name}` is set outside the scene's time")
+        for name in sound.bodies:
+            if not scene.body(name).collide and sound.trigger in ("collide", "contact"):
+                warnings.append(f"{sound.source}: sound `{sound.name}` waits for `{name}`, which has `collide off`")
+    if scene.solver.step is not None and scene.solver.step > (scene.time.end - scene.time.start):
+        warnings.append("the solver step is longer than the whole scene")
+    return warnings
+
+
+def _pos(source: str) -> SourcePos | None:
+    """'file:line:col' back to a SourcePos."""
+    try:
+        file, line, col = source.rsplit(":", 2)
+        return SourcePos(file, int(line), int(col))
+    except ValueError:
+        return None

@@ -1,0 +1,255 @@
+"""Stage 2a, expand: includes spliced, `let`s bound, parts instantiated, loops unrolled.
+
+The result is a flat list of declarations, each with the scope it was written in, so that stage 2b (lower)
+can resolve names once every body, material and wind is known, whatever the order they were written in.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lark import Token, Tree
+
+from . import expr as E
+from . import units as U
+from .diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean, display_path
+from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, Typed
+from .syntax import parse_expression, parse_text
+
+DECLARATIONS = ("material", "body", "constraint", "force", "wind", "sound", "camera", "light", "exclude")
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Bounds on expansion, so a runaway loop or part is a diagnostic and not a hang (raise with --max-items)."""
+
+    max_items: int = 200_000  # declarations after expansion
+    max_depth: int = 32  # nested includes and part instances
+
+
+@dataclass
+class Decl:
+    """A declaration after expansion: its kind, its full name, the tree and the scope it was written in."""
+
+    kind: str
+    name: str | None
+    tree: Tree
+    scope: Scope
+    lowerer: ExprLowerer  # knows the file the tree came from
+
+
+@dataclass
+class Expansion:
+    decls: list = field(default_factory=list)
+    settings: list = field(default_factory=list)  # (tree, scope, lowerer) of scene-level settings
+    solvers: list = field(default_factory=list)
+    scene_names: list = field(default_factory=list)  # (name, pos)
+    parameters: dict = field(default_factory=dict)  # top-level lets after overrides: name -> Typed
+    used_overrides: set = field(default_factory=set)
+
+
+class Expander:
+    def __init__(self, root: Path, sources: SourceCache, reporter: Reporter, overrides: dict, limits: Limits):
+        self.root = root
+        self.sources = sources
+        self.reporter = reporter
+        self.overrides = overrides  # name -> Typed
+        self.limits = limits
+        self.out = Expansion()
+        self.include_stack: list[Path] = []
+        self.count = 0
+
+    # -- files --------------------------------------------------------------------------------------------
+
+    def expand_file(self, path: Path, scope: Scope, depth: int = 0, at: SourcePos | None = None) -> None:
+        resolved = path.resolve()
+        name = display_path(path, self.root)
+        if resolved in self.include_stack:
+            chain = " -> ".join(display_path(p, self.root) for p in self.include_stack + [resolved])
+            self.reporter.error(f"include cycle: {chain}", at, "remove one of the includes")
+            return
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as error:
+            self.reporter.error(f"cannot read `{name}`: {getattr(error, 'strerror', None) or error}", at,
+                                "paths in `include` are relative to the including file")
+            return
+        self.sources.add(name, text)
+        tree = parse_text(text, name, self.reporter)
+        if tree is None:
+            return
+        self.include_stack.append(resolved)
+        try:
+            self.items(tree.children, scope, ExprLowerer(name, self.reporter), depth)
+        finally:
+            self.include_stack.pop()
+
+    # -- items --------------------------------------------------------------------------------------------
+
+    def items(self, items, scope: Scope, lowerer: ExprLowerer, depth: int, top: bool = True) -> None:
+        for item in items:
+            try:
+                self.item(item, scope, lowerer, depth, top)
+            except SceneError:
+                # recorded already; go on with the next item so one run reports several errors
+                if len(self.reporter.diagnostics) >= Reporter.LIMIT:
+                    raise
+
+    def item(self, item: Tree, scope: Scope, lowerer: ExprLowerer, depth: int, top: bool) -> None:
+        kind = item.data
+        if kind == "scene":
+            self._scene(item, scope, lowerer, depth)
+        elif kind == "let_stmt":
+            self._let(item, scope, lowerer, top)
+        elif kind == "include_stmt":
+            self._include(item, scope, lowerer, depth)
+        elif kind == "kind_def":
+            self._kind(item, scope, lowerer)
+        elif kind == "part_def":
+            scope.parts[str(item.children[0])] = (item, lowerer)
+        elif kind == "use_part":
+            self._use(item, scope, lowerer, depth)
+        elif kind == "for_loop":
+            self._for(item, scope, lowerer, depth)
+        elif kind == "setting":
+            if scope.prefix:
+                raise lowerer.fail("scene settings belong to the scene, not inside a part", item)
+            self.out.settings.append((item, scope, lowerer))
+        elif kind == "solver":
+            self.out.solvers.append((item, scope, lowerer))
+        elif kind in DECLARATIONS:
+            self._declaration(kind, item, scope, lowerer)
+        else:  # pragma: no cover - the grammar has no other items
+            raise lowerer.fail(f"unexpected `{kind}`", item)
+
+    def _scene(self, item, scope, lowerer, depth):
+        name = self.decl_name(item.children[0], scope, lowerer)
+        self.out.scene_names.append((name, lowerer.pos(item.children[0])))
+        self.items(item.children[1:], scope, lowerer, depth, top=True)
+
+    def _let(self, item, scope, lowerer, top):
+        name_token, value_tree = item.children
+        name = str(name_token)
+        if top and not scope.prefix and name in self.overrides:
+            value = self.overrides[name]
+            self.out.used_overrides.add(name)
+        else:
+            value = lowerer.lower(value_tree, scope, ExprContext(time=True, signals=True))
+        scope.values[name] = value
+        if top and not scope.prefix:
+            self.out.parameters[name] = value
+
+    def _include(self, item, scope, lowerer, depth):
+        if depth >= self.limits.max_depth:
+            raise lowerer.fail("includes nested too deeply", item, "is there an include cycle?")
+        relative = str(item.children[0])[1:-1]
+        here = self.include_stack[-1].parent if self.include_stack else self.root
+        self.expand_file(here / relative, scope, depth + 1, lowerer.pos(item.children[0]))
+
+    def _kind(self, item, scope, lowerer):
+        name = str(item.children[0])
+        params = [str(t) for t in item.children[1:-1] if t is not None]
+        scope.kinds[name] = (params, item.children[-1], scope, lowerer)
+
+    def _use(self, item, scope: Scope, lowerer: ExprLowerer, depth: int):
+        part_name = str(item.children[0])
+        found = scope.lookup("parts", part_name)
+        if found is None:
+            raise lowerer.fail(f"unknown part `{part_name}`", item.children[0],
+                               did_you_mean(part_name, scope.visible("parts")) or "declare it with `part NAME(...) { ... }`")
+        if depth >= self.limits.max_depth:
+            raise lowerer.fail("parts nested too deeply", item, "does a part use itself?")
+        part_tree, part_lowerer = found
+        instance = self.decl_name(item.children[1], scope, lowerer)
+        inner = Scope(parent=scope, prefix=scope.prefix + instance + ".")
+        self._bind_part_params(part_tree, item, inner, scope, lowerer, part_lowerer)
+        body = [c for c in part_tree.children[1:] if isinstance(c, Tree) and c.data != "param"]
+        self.items(body, inner, part_lowerer, depth + 1, top=False)
+
+    def _bind_part_params(self, part_tree, use_tree, inner, scope, lowerer, part_lowerer):
+        params = {str(p.children[0]): p for p in part_tree.children[1:] if isinstance(p, Tree) and p.data == "param"}
+        given = {}
+        for arg in use_tree.children[2:]:
+            if arg is None:
+                continue
+            if not (isinstance(arg, Tree) and arg.data == "kwarg"):
+                raise lowerer.fail("part arguments are named: `use part instance(name = value)`", arg)
+            key = str(arg.children[0])
+            if key not in params:
+                raise lowerer.fail(f"part `{part_tree.children[0]}` has no parameter `{key}`", arg.children[0],
+                                   did_you_mean(key, params))
+            given[key] = self._part_argument(arg.children[1], scope, lowerer)
+        for key, param in params.items():
+            if key in given:
+                inner.values[key] = given[key]
+            elif param.children[1] is not None:
+                inner.values[key] = part_lowerer.lower(param.children[1], inner, ExprContext())
+            else:
+                raise lowerer.fail(f"part `{part_tree.children[0]}` needs a value for `{key}`", use_tree)
+
+    def _part_argument(self, tree, scope, lowerer):
+        """A part argument is a value, or a body name (then the part can attach to that body)."""
+        if isinstance(tree, Tree) and tree.data == "name_ref" and len(tree.children) == 1:
+            name = str(tree.children[0])
+            bound = scope.lookup("values", name)
+            if isinstance(bound, BodyRef):
+                return bound
+            if bound is None and name not in E.CONSTANTS and name != "t":
+                # resolved against the bodies once all are known, from the caller's scope outward
+                return BodyRef(name, lowerer.pos(tree), tuple(scope.prefixes()))
+        return lowerer.lower(tree, scope, ExprContext())
+
+    def _for(self, item, scope, lowerer, depth):
+        var, start_tree, end_tree = item.children[:3]
+        start = self._integer(start_tree, scope, lowerer)
+        end = self._integer(end_tree, scope, lowerer)
+        body = item.children[3:]
+        if (end - start) * max(1, len(body)) + self.count > self.limits.max_items:
+            raise lowerer.fail(f"this loop would expand to {(end - start) * len(body)} declarations, "
+                               f"over the limit of {self.limits.max_items}", item,
+                               "raise the limit with --max-items if you mean it")
+        for i in range(start, end):
+            inner = scope.child()
+            inner.values[str(var)] = Typed(E.Const(float(i)), None, lowerer.pos(var))
+            self.items(body, inner, lowerer, depth, top=False)
+
+    def _integer(self, tree, scope, lowerer) -> int:
+        value = lowerer.lower(tree, scope, ExprContext(time=False))
+        if not isinstance(value.node, E.Const) or isinstance(value.node.value, tuple) \
+                or value.dim not in (None, U.DIMENSIONLESS) or value.node.value != int(value.node.value):
+            raise lowerer.fail("a loop bound must be a whole number", tree)
+        return int(value.node.value)
+
+    def _declaration(self, kind, item, scope, lowerer):
+        self.count += 1
+        if self.count > self.limits.max_items:
+            raise lowerer.fail(f"the scene expands to more than {self.limits.max_items} declarations", item,
+                               "raise the limit with --max-items if you mean it")
+        name = None
+        if kind != "exclude":
+            name = scope.prefix + self.decl_name(item.children[0], scope, lowerer)
+        self.out.decls.append(Decl(kind, name, item, scope, lowerer))
+
+    # -- names --------------------------------------------------------------------------------------------
+
+    def decl_name(self, tree, scope: Scope, lowerer: ExprLowerer) -> str:
+        token = tree.children[0] if isinstance(tree, Tree) else tree
+        text = str(token)
+        if token.type != "TNAME":
+            return text
+        return interpolate_name(text, token, scope, lowerer)
+
+
+def interpolate_name(text: str, token, scope: Scope, lowerer: ExprLowerer) -> str:
+    """link{i+1} -> link3 with i = 2: each {expr} must be a whole number."""
+    out, rest = [], text
+    while "{" in rest:
+        head, _, tail = rest.partition("{")
+        inner, _, rest = tail.partition("}")
+        value = lowerer.lower(parse_expression(inner), scope, ExprContext(time=False))
+        number = value.node.value if isinstance(value.node, E.Const) else None
+        if not isinstance(number, float) or number != int(number):
+            raise lowerer.fail(f"`{{{inner}}}` in a name must be a whole number", token)
+        out.append(head + str(int(number)))
+    out.append(rest)
+    return "".join(out)

@@ -1,0 +1,504 @@
+"""Expression trees of the IR, their evaluator and their time derivative. Never `eval`.
+
+A value that changes over time stays a small tree (`Op`, `Call`, `Vec`, `Keys`, `Var("t")`); everything
+else is folded into a `Const` when the scene is lowered. Values are in SI units.
+
+Evaluation is vectorized: `evaluate(node, {"t": times})` with `times` of shape (T,) gives (T,) for a scalar,
+(T, k) for a k-vector; with a float `t` it gives a float or a (k,) array.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+
+class Expr:
+    """Base of the expression nodes (frozen dataclasses: hashable, comparable, safe to share)."""
+
+    __slots__ = ()
+
+
+@dataclass(frozen=True)
+class Const(Expr):
+    value: Any  # float, or nested tuples of floats for vectors
+
+
+@dataclass(frozen=True)
+class Var(Expr):
+    name: str
+
+
+@dataclass(frozen=True)
+class Str(Expr):
+    value: str
+
+
+@dataclass(frozen=True)
+class Op(Expr):
+    op: str  # add sub mul div neg pow
+    args: tuple
+
+
+@dataclass(frozen=True)
+class Call(Expr):
+    fn: str
+    args: tuple
+    kwargs: tuple = ()  # ((name, Expr), ...) sorted by name
+
+
+@dataclass(frozen=True)
+class Vec(Expr):
+    items: tuple
+
+
+@dataclass(frozen=True)
+class Keys(Expr):
+    """A keyframe table: value at each time, interpolated `linear`, `cubic` (natural spline) or `step`."""
+
+    interp: str
+    times: tuple
+    values: tuple
+    order: int = 0  # derivative order: the runtime asks for dP/dt and d2P/dt2 of a keyframed path
+
+
+@dataclass(frozen=True)
+class Deriv(Expr):
+    """d^order/dt^order of a node with no closed-form derivative (a recorded envelope): central differences."""
+
+    arg: Expr
+    order: int = 1
+
+
+# ---- functions the evaluator knows -----------------------------------------------------------------------
+
+def _smoothstep(e0, e1, x):
+    u = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    # 3u^2 - 2u^3
+    return u * u * (3.0 - 2.0 * u)
+
+
+def _quat_from_euler(ax, ay, az):
+    """Extrinsic x, then y, then z rotation (radians): q = qz * qy * qx."""
+    cx, sx = np.cos(0.5 * ax), np.sin(0.5 * ax)
+    cy, sy = np.cos(0.5 * ay), np.sin(0.5 * ay)
+    cz, sz = np.cos(0.5 * az), np.sin(0.5 * az)
+    return np.stack(np.broadcast_arrays(
+        cz * cy * cx + sz * sy * sx,
+        cz * cy * sx - sz * sy * cx,
+        cz * sy * cx + sz * cy * sx,
+        sz * cy * cx - cz * sy * sx,
+    ), axis=-1)
+
+
+def _quat_from_axis_angle(axis, angle):
+    axis = np.asarray(axis, dtype=float)
+    unit = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+    half = 0.5 * np.asarray(angle, dtype=float)[..., None]
+    return np.concatenate(np.broadcast_arrays(np.cos(half), np.sin(half) * unit), axis=-1)
+
+
+def _quat(w, x, y, z):
+    q = np.stack(np.broadcast_arrays(w, x, y, z), axis=-1).astype(float)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+SCALAR_FUNCTIONS: dict[str, Callable] = {
+    "sin": np.sin, "cos": np.cos, "tan": np.tan, "exp": np.exp, "log": np.log, "sqrt": np.sqrt,
+    "abs": np.abs, "min": np.minimum, "max": np.maximum, "floor": np.floor, "sign": np.sign,
+    "atan2": np.arctan2, "asin": np.arcsin, "acos": np.arccos, "atan": np.arctan,
+    "clamp": lambda x, lo, hi: np.clip(x, lo, hi),
+    "lerp": lambda a, b, u: a + (b - a) * u,
+    "smoothstep": _smoothstep,
+    "step": lambda edge, x: np.where(x >= edge, 1.0, 0.0),
+}
+VECTOR_FUNCTIONS: dict[str, Callable] = {
+    "length": lambda v: np.linalg.norm(v, axis=-1),
+    "normalize": lambda v: v / np.linalg.norm(v, axis=-1, keepdims=True),
+    "dot": lambda a, b: np.sum(a * b, axis=-1),
+    "cross": lambda a, b: np.cross(a, b),
+    "euler": _quat_from_euler,
+    "axis_angle": _quat_from_axis_angle,
+    "quat": _quat,
+}
+# result size of vector-valued functions (0 = scalar); None = same as the first argument
+RESULT_SIZE = {"length": 0, "dot": 0, "normalize": None, "cross": 3, "euler": 4, "axis_angle": 4, "quat": 4}
+ARITY = {
+    "sin": 1, "cos": 1, "tan": 1, "exp": 1, "log": 1, "sqrt": 1, "abs": 1, "floor": 1, "sign": 1,
+    "asin": 1, "acos": 1, "atan": 1, "atan2": 2, "min": 2, "max": 2, "clamp": 3, "lerp": 3,
+    "smoothstep": 3, "step": 2, "length": 1, "normalize": 1, "dot": 2, "cross": 2, "euler": 3,
+    "axis_angle": 2, "quat": 4,
+}
+CONSTANTS = {"pi": math.pi, "e": math.e, "tau": 2.0 * math.pi}
+
+
+class EvaluationError(ValueError):
+    pass
+
+
+# ---- shape -----------------------------------------------------------------------------------------------
+
+@functools.lru_cache(maxsize=4096)
+def size_of(node: Expr) -> int:
+    """0 for a scalar, k for a k-vector (static: known without evaluating)."""
+    if isinstance(node, Const):
+        return len(node.value) if isinstance(node.value, tuple) else 0
+    if isinstance(node, Vec):
+        return len(node.items)
+    if isinstance(node, (Op,)):
+        return max(size_of(a) for a in node.args)
+    if isinstance(node, Call):
+        if node.fn in RESULT_SIZE:
+            size = RESULT_SIZE[node.fn]
+            return size_of(node.args[0]) if size is None else size
+        return max((size_of(a) for a in node.args), default=0)
+    if isinstance(node, Keys):
+        first = node.values[0]
+        return len(first) if isinstance(first, tuple) else 0
+    if isinstance(node, Deriv):
+        return size_of(node.arg)
+    return 0
+
+
+def is_constant(node: Expr) -> bool:
+    return isinstance(node, Const)
+
+
+def free_vars(node: Expr) -> frozenset:
+    if isinstance(node, Var):
+        return frozenset([node.name])
+    children = _children(node)
+    return frozenset().union(*(free_vars(c) for c in children)) if children else frozenset()
+
+
+def _children(node: Expr) -> tuple:
+    if isinstance(node, Op):
+        return node.args
+    if isinstance(node, Call):
+        return node.args + tuple(v for _, v in node.kwargs)
+    if isinstance(node, Vec):
+        return node.items
+    if isinstance(node, Deriv):
+        return (node.arg,)
+    return ()
+
+
+# ---- evaluation ------------------------------------------------------------------------------------------
+
+def evaluate(node: Expr, env: dict, functions: dict | None = None):
+    """Value of node with the variables of env (e.g. {"t": 0.5} or {"t": times}).
+
+    `functions` adds signal functions the runtime provides (a recorded envelope, a live microphone):
+    name -> callable(env, *evaluated_args, **kwargs).
+    """
+    if isinstance(node, Const):
+        return np.asarray(node.value, dtype=float) if isinstance(node.value, tuple) else node.value
+    if isinstance(node, Var):
+        try:
+            return env[node.name]
+        except KeyError:
+            raise EvaluationError(f"`{node.name}` has no value here") from None
+    if isinstance(node, Op):
+        return _evaluate_op(node, env, functions)
+    if isinstance(node, Vec):
+        parts = [evaluate(item, env, functions) for item in node.items]
+        return np.stack(np.broadcast_arrays(*parts), axis=-1).astype(float)
+    if isinstance(node, Call):
+        return _evaluate_call(node, env, functions)
+    if isinstance(node, Keys):
+        return _evaluate_keys(node, env["t"])
+    if isinstance(node, Deriv):
+        return _evaluate_numeric_derivative(node, env, functions)
+    if isinstance(node, Str):
+        return node.value
+    raise EvaluationError(f"cannot evaluate {type(node).__name__}")
+
+
+def _lift(value, size: int, other_size: int):
+    """Give a scalar of shape (T,) a trailing axis when it meets a vector, so that it broadcasts."""
+    if size == 0 and other_size > 0 and np.ndim(value) > 0:
+        return np.asarray(value)[..., None]
+    return value
+
+
+def _evaluate_op(node: Op, env, functions):
+    values = [evaluate(a, env, functions) for a in node.args]
+    if node.op == "neg":
+        return -values[0]
+    sizes = [size_of(a) for a in node.args]
+    a = _lift(values[0], sizes[0], sizes[1])
+    b = _lift(values[1], sizes[1], sizes[0])
+    if node.op == "add":
+        return a + b
+    if node.op == "sub":
+        return a - b
+    if node.op == "mul":
+        return a * b
+    if node.op == "div":
+        return a / b
+    if node.op == "pow":
+        return np.power(a, b)
+    raise EvaluationError(f"unknown operator {node.op}")
+
+
+def _evaluate_call(node: Call, env, functions):
+    if functions and node.fn in functions:
+        args = [evaluate(a, env, functions) for a in node.args]
+        kwargs = {k: evaluate(v, env, functions) for k, v in node.kwargs}
+        return functions[node.fn](env, *args, **kwargs)
+    args = [evaluate(a, env, functions) for a in node.args]
+    if node.fn in VECTOR_FUNCTIONS:
+        return VECTOR_FUNCTIONS[node.fn](*args)
+    if node.fn in SCALAR_FUNCTIONS:
+        sizes = [size_of(a) for a in node.args]
+        widest = max(sizes)
+        return SCALAR_FUNCTIONS[node.fn](*[_lift(v, s, widest) for v, s in zip(args, sizes)])
+    raise EvaluationError(f"unknown function `{node.fn}`")
+
+
+@functools.lru_cache(maxsize=256)
+def _interpolator(node: Keys):
+    from scipy.interpolate import CubicSpline
+
+    times = np.asarray(node.times, dtype=float)
+    values = np.asarray(node.values, dtype=float)
+    if node.interp == "cubic" and len(times) > 2:
+        return CubicSpline(times, values, axis=0, bc_type="natural", extrapolate=False)
+    return None
+
+
+def _evaluate_keys(node: Keys, t):
+    times = np.asarray(node.times, dtype=float)
+    values = np.asarray(node.values, dtype=float)
+    tt = np.clip(np.asarray(t, dtype=float), times[0], times[-1])
+    spline = _interpolator(node)
+    if spline is not None:
+        return spline(tt, node.order)
+    if node.interp == "step":
+        index = np.clip(np.searchsorted(times, tt, side="right") - 1, 0, len(times) - 1)
+        return values[index] if node.order == 0 else np.zeros_like(values[index])
+    # linear (also cubic with two keys): value, or the slope of the segment for order 1
+    index = np.clip(np.searchsorted(times, tt, side="right") - 1, 0, max(len(times) - 2, 0))
+    if len(times) == 1:
+        return values[0] * np.ones_like(tt)[..., None] if values.ndim > 1 else values[0] + 0 * tt
+    t0, t1 = times[index], times[index + 1]
+    v0, v1 = values[index], values[index + 1]
+    if node.order >= 2:
+        return np.zeros_like(v0)
+    slope = (v1 - v0) / np.asarray(t1 - t0)[..., None] if values.ndim > 1 else (v1 - v0) / (t1 - t0)
+    if node.order == 1:
+        return slope
+    u = (tt - t0)[..., None] if values.ndim > 1 else tt - t0
+    return v0 + slope * u
+
+
+# step of the central differences in Deriv: small against the time scales of a scene, large against rounding
+_DERIV_STEP = 1e-4
+
+
+def _evaluate_numeric_derivative(node: Deriv, env, functions):
+    t = np.asarray(env["t"], dtype=float)
+    h = _DERIV_STEP
+    f = lambda shift: np.asarray(evaluate(node.arg, {**env, "t": t + shift}, functions), dtype=float)
+    if node.order == 1:
+        # f'(t) = (f(t+h) - f(t-h)) / 2h
+        return (f(h) - f(-h)) / (2 * h)
+    # f''(t) = (f(t+h) - 2 f(t) + f(t-h)) / h^2
+    return (f(h) - 2 * f(0.0) + f(-h)) / (h * h)
+
+
+# ---- time derivative -------------------------------------------------------------------------------------
+
+ZERO = Const(0.0)
+ONE = Const(1.0)
+
+
+def derivative(node: Expr, var: str = "t") -> Expr:
+    """d node / d var as a new tree (exact where the function has a closed form)."""
+    if isinstance(node, (Const, Str)):
+        return _zero_like(node)
+    if isinstance(node, Var):
+        return ONE if node.name == var else ZERO
+    if isinstance(node, Vec):
+        return Vec(tuple(derivative(i, var) for i in node.items))
+    if isinstance(node, Op):
+        return _derivative_op(node, var)
+    if isinstance(node, Keys):
+        return Keys(node.interp, node.times, node.values, node.order + 1)
+    if isinstance(node, Call) and node.fn in _CHAIN_RULES and var not in _kwarg_vars(node):
+        inner = node.args[0]
+        return mul(_CHAIN_RULES[node.fn](inner), derivative(inner, var))
+    if isinstance(node, Deriv):
+        return Deriv(node.arg, node.order + 1)
+    if var not in free_vars(node) and not isinstance(node, Call):
+        return _zero_like(node)
+    return Deriv(node, 1)
+
+
+def _kwarg_vars(node: Call) -> frozenset:
+    return frozenset().union(*(free_vars(v) for _, v in node.kwargs)) if node.kwargs else frozenset()
+
+
+def _zero_like(node: Expr) -> Expr:
+    size = size_of(node) if not isinstance(node, Str) else 0
+    return Const(tuple([0.0] * size)) if size else ZERO
+
+
+def _derivative_op(node: Op, var: str) -> Expr:
+    if node.op == "neg":
+        return neg(derivative(node.args[0], var))
+    a, b = node.args
+    da, db = derivative(a, var), derivative(b, var)
+    if node.op == "add":
+        return add(da, db)
+    if node.op == "sub":
+        return sub(da, db)
+    if node.op == "mul":
+        # (ab)' = a'b + ab'
+        return add(mul(da, b), mul(a, db))
+    if node.op == "div":
+        # (a/b)' = (a'b - ab') / b^2
+        return Op("div", (sub(mul(da, b), mul(a, db)), mul(b, b)))
+    if node.op == "pow" and isinstance(b, Const):
+        # (a^n)' = n a^(n-1) a'
+        return mul(mul(b, Op("pow", (a, Const(b.value - 1.0)))), da)
+    return Deriv(node, 1)
+
+
+_CHAIN_RULES = {
+    "sin": lambda u: Call("cos", (u,)),
+    "cos": lambda u: neg(Call("sin", (u,))),
+    "exp": lambda u: Call("exp", (u,)),
+    "log": lambda u: Op("div", (ONE, u)),
+    "sqrt": lambda u: Op("div", (Const(0.5), Call("sqrt", (u,)))),
+    "tan": lambda u: Op("div", (ONE, mul(Call("cos", (u,)), Call("cos", (u,))))),
+}
+
+
+# ---- smart constructors: fold constants as the tree is built ---------------------------------------------
+
+def _is_zero(node: Expr) -> bool:
+    return isinstance(node, Const) and not isinstance(node.value, tuple) and node.value == 0.0
+
+
+def _is_one(node: Expr) -> bool:
+    return isinstance(node, Const) and not isinstance(node.value, tuple) and node.value == 1.0
+
+
+def fold(node: Expr) -> Expr:
+    """Replace a subtree without variables or runtime signals by its value."""
+    if isinstance(node, (Const, Str, Var, Keys)):
+        return node
+    if free_vars(node) or _has_unknown_call(node):
+        return node
+    value = evaluate(node, {})
+    return Const(to_tuple(value))
+
+
+def _has_unknown_call(node: Expr) -> bool:
+    if isinstance(node, Call) and node.fn not in SCALAR_FUNCTIONS and node.fn not in VECTOR_FUNCTIONS:
+        return True
+    if isinstance(node, (Keys, Deriv)):
+        return True
+    return any(_has_unknown_call(c) for c in _children(node))
+
+
+def to_tuple(value):
+    array = np.asarray(value, dtype=float)
+    if array.ndim == 0:
+        return float(array)
+    return tuple(to_tuple(v) for v in array)
+
+
+def add(a: Expr, b: Expr) -> Expr:
+    if _is_zero(a) and size_of(b) >= size_of(a):
+        return b
+    if _is_zero(b) and size_of(a) >= size_of(b):
+        return a
+    return fold(Op("add", (a, b)))
+
+
+def sub(a: Expr, b: Expr) -> Expr:
+    if _is_zero(b) and size_of(a) >= size_of(b):
+        return a
+    return fold(Op("sub", (a, b)))
+
+
+def mul(a: Expr, b: Expr) -> Expr:
+    if (_is_zero(a) or _is_zero(b)):
+        return _zero_like(Op("mul", (a, b)))
+    if _is_one(a):
+        return b
+    if _is_one(b):
+        return a
+    return fold(Op("mul", (a, b)))
+
+
+def neg(a: Expr) -> Expr:
+    return fold(Op("neg", (a,)))
+
+
+# ---- JSON ------------------------------------------------------------------------------------------------
+
+def to_json(node: Expr):
+    """Canonical JSON form: a constant is its plain value; anything else an object naming its kind."""
+    if isinstance(node, Const):
+        return _plain(node.value)
+    if isinstance(node, Var):
+        return {"var": node.name}
+    if isinstance(node, Str):
+        return {"str": node.value}
+    if isinstance(node, Op):
+        return {"op": node.op, "args": [to_json(a) for a in node.args]}
+    if isinstance(node, Call):
+        out = {"call": node.fn, "args": [to_json(a) for a in node.args]}
+        if node.kwargs:
+            out["kwargs"] = {k: to_json(v) for k, v in node.kwargs}
+        return out
+    if isinstance(node, Vec):
+        return {"vec": [to_json(i) for i in node.items]}
+    if isinstance(node, Keys):
+        return {"keys": node.interp, "times": list(node.times), "values": [_plain(v) for v in node.values],
+                "order": node.order}
+    if isinstance(node, Deriv):
+        return {"deriv": to_json(node.arg), "order": node.order}
+    raise TypeError(type(node))
+
+
+def _plain(value):
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    return value
+
+
+def from_json(data) -> Expr:
+    """Inverse of to_json (for reading ir.json back)."""
+    if isinstance(data, (int, float)):
+        return Const(float(data))
+    if isinstance(data, list):
+        return Const(_tuple(data))
+    if "var" in data:
+        return Var(data["var"])
+    if "str" in data:
+        return Str(data["str"])
+    if "op" in data:
+        return Op(data["op"], tuple(from_json(a) for a in data["args"]))
+    if "call" in data:
+        kwargs = tuple(sorted((k, from_json(v)) for k, v in data.get("kwargs", {}).items()))
+        return Call(data["call"], tuple(from_json(a) for a in data["args"]), kwargs)
+    if "vec" in data:
+        return Vec(tuple(from_json(i) for i in data["vec"]))
+    if "keys" in data:
+        return Keys(data["keys"], tuple(data["times"]), tuple(_tuple(v) for v in data["values"]), data["order"])
+    if "deriv" in data:
+        return Deriv(from_json(data["deriv"]), data["order"])
+    raise ValueError(f"not an expression: {data!r}")
+
+
+def _tuple(value):
+    if isinstance(value, list):
+        return tuple(_tuple(v) for v in value)
+    return float(value)

@@ -1,0 +1,95 @@
+"""The front end's driver: text -> parse tree -> expanded declarations -> IR -> checked IR.
+
+    scene = load_scene("scenes/pendulum.isaac", overrides={"length": "2 m"})
+
+Stops after the first stage that reports errors, with all of that stage's diagnostics (SceneError).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lark.exceptions import UnexpectedInput
+
+from . import ir
+from .check import check
+from .diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean
+from .expand import Expander, Limits
+from .lower import SceneLowerer
+from .lower_expr import ExprContext, ExprLowerer, Scope
+from .syntax import describe_syntax_error, parse_expression
+
+
+@dataclass
+class Loaded:
+    scene: ir.Scene
+    warnings: list = field(default_factory=list)
+    sources: SourceCache = None
+
+
+def load_scene(path, overrides: dict | None = None, limits: Limits | None = None,
+               sources: SourceCache | None = None) -> Loaded:
+    """Parse, expand, lower and check the scene file at path. Raises SceneError with every diagnostic."""
+    path = Path(path)
+    return _load(path, path.parent, overrides or {}, limits or Limits(), sources or SourceCache())
+
+
+def load_text(text: str, name: str = "<scene>", overrides: dict | None = None, folder=".",
+              limits: Limits | None = None, sources: SourceCache | None = None) -> Loaded:
+    """The same for scene text held in memory (includes resolve relative to `folder`)."""
+    folder = Path(folder)
+    path = folder / name
+    return _load(path, folder, overrides or {}, limits or Limits(), sources or SourceCache(), text=text)
+
+
+def _load(path: Path, root: Path, overrides: dict, limits: Limits, sources: SourceCache, text=None) -> Loaded:
+    reporter = Reporter()
+    parsed_overrides = _parse_overrides(overrides, reporter, sources)
+    reporter.raise_if_any()
+    expander = Expander(root, sources, reporter, parsed_overrides, limits)
+    scope = Scope()
+    if text is None:
+        expander.expand_file(path, scope)
+    else:
+        _expand_text(expander, path, text, scope)
+    for name in sorted(set(parsed_overrides) - expander.out.used_overrides):
+        reporter.error(f"--set {name}: the scene has no parameter `{name}`", None,
+                       did_you_mean(name, expander.out.parameters) or
+                       "parameters are the scene's top-level `let`s")
+    reporter.raise_if_any()
+    root_name = expander.include_stack[0] if expander.include_stack else path.name
+    scene = SceneLowerer(expander.out, reporter, path.name).run()
+    warnings = check(scene, reporter)
+    reporter.raise_if_any()
+    return Loaded(scene, warnings, sources)
+
+
+def _expand_text(expander: Expander, path: Path, text: str, scope: Scope) -> None:
+    from .syntax import parse_text
+
+    name = path.name
+    expander.sources.add(name, text)
+    tree = parse_text(text, name, expander.reporter)
+    if tree is not None:
+        expander.include_stack.append(path.resolve())
+        expander.items(tree.children, scope, ExprLowerer(name, expander.reporter), 0)
+        expander.include_stack.pop()
+
+
+def _parse_overrides(overrides: dict, reporter: Reporter, sources: SourceCache) -> dict:
+    """--set NAME=VALUE: each VALUE is an expression of the language, e.g. `2 m` or `0.5*pi`."""
+    parsed = {}
+    for name, text in overrides.items():
+        label = f"--set {name}"
+        sources.add(label, str(text))
+        try:
+            tree = parse_expression(str(text))
+        except UnexpectedInput as error:
+            message, pos, hint = describe_syntax_error(error, str(text), label)
+            reporter.error(message, pos, hint)
+            continue
+        try:
+            parsed[name] = ExprLowerer(label, reporter).lower(tree, Scope(), ExprContext())
+        except SceneError:
+            continue
+    return parsed

@@ -1,0 +1,463 @@
+"""Stage 2b, lower: expanded declarations -> IR (SI units, names resolved, every default explicit)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import expr as E
+from . import ir
+from . import mass as M
+from . import units as U
+from .diagnostics import Reporter, SceneError, SourcePos, did_you_mean
+from .expand import Decl, Expansion
+from .lower_constraints import ConstraintLowerer
+from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, ref_text
+from .props import Props
+from .syntax import KEYWORDS
+
+SHAPES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh")
+MOTIONS = ("dynamic", "static", "kinematic")
+
+SETTINGS = {"time": "start .. end", "gravity": "acceleration vector", "frames": "output frame rate",
+            "seed": "seed of random things", "listener": "{ at, gain, delay }", "audio": "{ rate, channels }"}
+SOLVER_PROPS = {"integrator": "rk4 | euler | midpoint", "step": "time step", "stabilize": "frequency",
+                "damping": "damping ratio", "linear": "auto | dense | sparse | tree", "substeps": "procedural",
+                "iterations": "procedural", "compliance": "procedural softness, m/N"}
+CAMERA_PROPS = {"at": "position", "look": "point looked at", "up": "up direction", "fov": "vertical field of view"}
+LIGHT_PROPS = {"from": "where a distant light comes from", "at": "position", "to": "where it points",
+               "intensity": "brightness", "color": "(r, g, b)"}
+MATERIAL_PROPS = {"density": "kg/m3", "friction": "Coulomb coefficient", "restitution": "0..1",
+                  "young": "Young's modulus", "poisson": "Poisson's ratio", "loss": "internal friction tan(phi)",
+                  "rayleigh": "(alpha, beta)", "roughness": "surface height scale", "texture": "height profile file"}
+BODY_PROPS = {"radius": "length", "length": "length along z", "size": "box edges", "normal": "plane normal",
+              "file": "mesh file", "scale": "mesh scale", "mass": "kg", "density": "kg/m3",
+              "inertia": "principal moments", "at": "centre of mass", "orient": "orientation",
+              "velocity": "initial velocity", "spin": "initial angular velocity", "material": "material name",
+              "collide": "on | off", "wind": "on | off", "drag": "drag coefficient", "area": "area facing the wind",
+              "modes": "((f, decay, gain), ...)"}
+WIND_PROPS = {"direction": "where the air goes", "from": "source point", "toward": "direction from the source",
+              "speed": "m/s, may follow t or a breath", "falloff": "none | inverse | inverse_square",
+              "distance": "reference distance of the falloff", "spread": "cone half-angle",
+              "turbulence": "gust amplitude (relative)", "gust": "gust time scale", "air": "air density"}
+SOUND_PROPS = {"play": "audio-graph expression", "gain": "linear gain or dB"}
+LISTENER_PROPS = {"at": "position", "gain": "gain", "delay": "on | off"}
+AUDIO_PROPS = {"rate": "sample rate", "channels": "1 or 2"}
+
+DEFAULT_DRAG = {"sphere": 0.47, "box": 1.05, "cylinder": 0.82, "capsule": 0.82, "mesh": 1.0, "plane": 1.17}
+
+
+class SceneLowerer:
+    def __init__(self, expansion: Expansion, reporter: Reporter, root_file: str):
+        self.x = expansion
+        self.reporter = reporter
+        self.root_file = root_file
+        self.materials: dict[str, ir.Material] = {}
+        self.bodies: dict[str, ir.Body] = {}
+        self.broken: set[str] = set()  # declared, but with errors: references to them are not errors again
+        self.constraints = ConstraintLowerer(self)
+
+    # -- driver -------------------------------------------------------------------------------------------
+
+    def run(self) -> ir.Scene:
+        name = self._scene_name()
+        settings = self._settings()
+        solver = self._solver()
+        by_kind = {kind: [d for d in self.x.decls if d.kind == kind] for kind in
+                   ("material", "body", "camera", "light", "constraint", "force", "wind", "sound", "exclude")}
+        self._each(by_kind["material"], self._material)
+        self._each(by_kind["body"], self._body)
+        cameras = self._each(by_kind["camera"], self._camera)
+        lights = self._each(by_kind["light"], self._light)
+        constraints = self._each(by_kind["constraint"], self.constraints.constraint)
+        forces = self._each(by_kind["force"], self.constraints.force)
+        winds = self._each(by_kind["wind"], self._wind)
+        wind_names = {w.name for w in winds}
+        sounds = self._each(by_kind["sound"], lambda d: self._sound(d, wind_names))
+        exclusions = self._each(by_kind["exclude"], self._exclusion)
+        self.reporter.raise_if_any()
+        return ir.Scene(
+            name=name, file=self.root_file, time=settings["time"], gravity=settings["gravity"],
+            seed=settings["seed"], solver=solver, cameras=tuple(cameras), lights=tuple(lights),
+            materials=tuple(self.materials.values()), bodies=tuple(self.bodies.values()),
+            constraints=tuple(constraints), forces=tuple(forces), winds=tuple(winds), sounds=tuple(sounds),
+            exclusions=tuple(exclusions), listener=settings["listener"], audio=settings["audio"],
+            parameters=tuple(sorted((k, _plain(v.node)) for k, v in self.x.parameters.items())),
+        )
+
+    def _each(self, decls, build) -> list:
+        out, seen = [], {}
+        for decl in decls:
+            if decl.name is not None and decl.name in seen:
+                self.reporter.error(f"{decl.kind} `{decl.name}` is declared twice", decl.lowerer.pos(decl.tree),
+                                    f"the first is at {seen[decl.name]}")
+                continue
+            try:
+                result = build(decl)
+            except SceneError:
+                if decl.name is not None:
+                    self.broken.add(decl.name)
+                continue
+            if decl.name is not None:
+                seen[decl.name] = decl.lowerer.pos(decl.tree)
+            if result is not None:
+                out.append(result)
+        return out
+
+    def _scene_name(self) -> str:
+        names = self.x.scene_names
+        if not names:
+            self.reporter.error("no `scene NAME { ... }` in this file", SourcePos(self.root_file, 1, 1),
+                                "wrap the scene's declarations in `scene my_scene { ... }`")
+            return "scene"
+        for extra, pos in names[1:]:
+            self.reporter.error(f"a second scene `{extra}` in one run", pos, "one scene per file")
+        return names[0][0]
+
+    # -- scene settings -----------------------------------------------------------------------------------
+
+    def _settings(self) -> dict:
+        lowerer = self.x.settings[0][2] if self.x.settings else None
+        props = None
+        if self.x.settings:
+            scope = self.x.settings[0][1]
+            props = Props(None, SETTINGS, "the scene", lowerer, scope, items=[t for t, _, _ in self.x.settings],
+                          keywords=KEYWORDS)
+        else:
+            props = _EmptyProps()
+        start, end = props.range("time", U.TIME) or (0.0, 10.0)
+        if end <= start:
+            self.reporter.error("the scene ends before it starts", lowerer.pos(props.node("time")),
+                                "write `time START .. END` with END after START")
+        frame_rate = props.scalar("frames", U.FREQUENCY, 60.0, bare_ok=True)
+        if frame_rate <= 0:
+            self.reporter.error("the frame rate must be positive", lowerer.pos(props.node("frames")))
+        gravity = props.vector("gravity", U.ACCELERATION, (0.0, -9.81, 0.0))
+        seed = props.integer("seed", 0)
+        listener_props = props.block("listener", LISTENER_PROPS, "the listener")
+        audio_props = props.block("audio", AUDIO_PROPS, "the audio settings")
+        return {
+            "time": ir.Timeline(start, end, frame_rate),
+            "gravity": gravity,
+            "seed": seed,
+            "listener": ir.Listener(listener_props.vector("at", U.LENGTH, (0.0, 0.0, 0.0)),
+                                    listener_props.scalar("gain", U.DIMENSIONLESS, 1.0),
+                                    listener_props.boolean("delay", False)),
+            "audio": ir.Audio(audio_props.scalar("rate", U.FREQUENCY, 44100.0, bare_ok=True),
+                              audio_props.integer("channels", 1, minimum=1)),
+        }
+
+    def _solver(self) -> ir.SolverOptions:
+        plan, props = "auto", _EmptyProps()
+        for tree, scope, lowerer in self.x.solvers[-1:]:
+            plan = str(tree.children[0])
+            if plan not in ("dynamics", "procedural", "auto"):
+                raise lowerer.fail(f"unknown solver `{plan}`", tree.children[0],
+                                   did_you_mean(plan, ("dynamics", "procedural", "auto")) or
+                                   "choose dynamics, procedural or auto")
+            props = Props(tree.children[1], SOLVER_PROPS, "the solver", lowerer, scope)
+        step = props.scalar("step", U.TIME)
+        if step is not None and step <= 0:
+            raise props.lowerer.fail("the step must be positive", props.node("step"))
+        return ir.SolverOptions(
+            plan=plan,
+            integrator=props.word("integrator", ("rk4", "euler", "midpoint"), "rk4"),
+            step=step,
+            stabilize_frequency=props.scalar("stabilize", U.FREQUENCY),
+            damping_ratio=props.scalar("damping", U.DIMENSIONLESS, 1.0),
+            linear_solver=props.word("linear", ("auto", "dense", "sparse", "tree"), "auto"),
+            substeps=props.integer("substeps", 8, minimum=1),
+            iterations=props.integer("iterations", 1, minimum=1),
+            compliance=props.scalar("compliance", U.DIMENSIONLESS, 0.0),
+        )
+
+    # -- things -------------------------------------------------------------------------------------------
+
+    def _camera(self, decl: Decl) -> ir.Camera:
+        props = Props(decl.tree.children[1], CAMERA_PROPS, f"camera `{decl.name}`", decl.lowerer, decl.scope)
+        return ir.Camera(decl.name, props.vector("at", U.LENGTH, (0.0, 1.0, 5.0)),
+                         props.vector("look", U.LENGTH, (0.0, 0.0, 0.0)), props.vector("up", U.LENGTH, (0.0, 1.0, 0.0)),
+                         props.scalar("fov", U.ANGLE, math.radians(45.0)), str(decl.lowerer.pos(decl.tree)))
+
+    def _light(self, decl: Decl) -> ir.Light:
+        kind = str(decl.tree.children[1])
+        if kind not in ("distant", "point", "spot", "ambient"):
+            raise decl.lowerer.fail(f"unknown light type `{kind}`", decl.tree.children[1],
+                                    did_you_mean(kind, ("distant", "point", "spot", "ambient")))
+        props = Props(decl.tree.children[2], LIGHT_PROPS, f"light `{decl.name}`", decl.lowerer, decl.scope)
+        position = props.vector("from", U.LENGTH) or props.vector("at", U.LENGTH, (0.0, 10.0, 0.0))
+        return ir.Light(decl.name, kind, position, props.vector("to", U.LENGTH, (0.0, 0.0, 0.0)),
+                        props.scalar("intensity", U.DIMENSIONLESS, 1.0),
+                        props.vector("color", U.DIMENSIONLESS, (1.0, 1.0, 1.0)), str(decl.lowerer.pos(decl.tree)))
+
+    def _material(self, decl: Decl) -> ir.Material:
+        props = Props(decl.tree.children[1], MATERIAL_PROPS, f"material `{decl.name}`", decl.lowerer, decl.scope)
+        density = props.scalar("density", U.DENSITY)
+        self._positive(density, "density", props)
+        rayleigh = props.vector("rayleigh", U.DIMENSIONLESS, size=2)
+        material = ir.Material(
+            decl.name, density, props.scalar("friction", U.DIMENSIONLESS, 0.5),
+            props.scalar("restitution", U.DIMENSIONLESS, 0.5), props.scalar("young", U.PRESSURE),
+            props.scalar("poisson", U.DIMENSIONLESS, 0.3), props.scalar("loss", U.DIMENSIONLESS), rayleigh,
+            props.scalar("roughness", U.LENGTH, 1e-5), props.string("texture"), str(decl.lowerer.pos(decl.tree)),
+        )
+        self.materials[decl.name] = material
+        return material
+
+    def _positive(self, value, name: str, props: Props) -> None:
+        if value is not None and value <= 0:
+            raise props.lowerer.fail(f"`{name}` must be positive", props.node(name))
+
+    def _body(self, decl: Decl) -> ir.Body:
+        words = [t for t in decl.tree.children[1:-1]]
+        shape_word, motion = self._body_words(words, decl)
+        what = f"body `{decl.name}`"
+        props = Props(decl.tree.children[-1], BODY_PROPS, what, decl.lowerer, decl.scope)
+        shape = self._shape(shape_word, props, decl)
+        material = self._material_of(props)
+        kinematic = motion == "kinematic"
+        position = props.vector("at", U.LENGTH, E.Const((0.0, 0.0, 0.0)), time=kinematic)
+        orientation = self._orientation(props, kinematic)
+        mass, inertia = self._mass_properties(shape, motion, props, material, decl)
+        body = ir.Body(
+            name=decl.name, shape=shape, motion=motion, mass=mass, inertia=inertia,
+            position=_as_expr(position), orientation=_as_expr(orientation),
+            velocity=props.vector("velocity", U.VELOCITY, (0.0, 0.0, 0.0)),
+            angular_velocity=props.vector("spin", U.ANGULAR_VELOCITY, (0.0, 0.0, 0.0)),
+            material=material.name if material else None,
+            collide=props.boolean("collide", True),
+            wind=ir.WindResponse(props.boolean("wind", props.has("drag") or props.has("area")),
+                                 props.scalar("drag", U.DIMENSIONLESS, DEFAULT_DRAG[shape.type]),
+                                 props.scalar("area", U.AREA)),
+            modes=self._modes(props),
+            source=str(decl.lowerer.pos(decl.tree)),
+        )
+        self.bodies[decl.name] = body
+        return body
+
+    def _body_words(self, words, decl: Decl):
+        shape_word, motion = None, "dynamic"
+        for word in words:
+            text = str(word)
+            if text in SHAPES and shape_word is None:
+                shape_word = text
+            elif text in MOTIONS:
+                motion = text
+            else:
+                raise decl.lowerer.fail(f"`{text}` is not a shape or a motion", word,
+                                        did_you_mean(text, SHAPES + MOTIONS) or
+                                        "shapes: " + ", ".join(SHAPES) + "; motions: " + ", ".join(MOTIONS))
+        if shape_word is None:
+            raise decl.lowerer.fail(f"body `{decl.name}` has no shape", decl.tree.children[0],
+                                    "write e.g. `body ball sphere { radius 5 cm }`")
+        if shape_word == "plane" and motion == "dynamic":
+            motion = "static"  # an infinite plane cannot move
+        return shape_word, motion
+
+    def _shape(self, kind: str, props: Props, decl: Decl) -> ir.Shape:
+        need = {"sphere": ("radius",), "box": ("size",), "cylinder": ("radius", "length"),
+                "capsule": ("radius", "length"), "plane": (), "mesh": ("file",)}[kind]
+        for name in need:
+            if not props.has(name):
+                raise decl.lowerer.fail(f"a {kind} needs `{name}`", decl.tree.children[0])
+        radius = props.scalar("radius", U.LENGTH)
+        length = props.scalar("length", U.LENGTH)
+        size = props.vector("size", U.LENGTH)
+        for name, value in (("radius", radius), ("length", length)):
+            self._positive(value, name, props)
+        if size is not None and min(size) <= 0:
+            raise decl.lowerer.fail("a box's edges must be positive", props.node("size"))
+        normal = props.vector("normal", U.DIMENSIONLESS, (0.0, 1.0, 0.0) if kind == "plane" else None)
+        if normal is not None:
+            normal = _unit(normal, props, "normal")
+        file = props.string("file")
+        if file is not None:
+            file = self._asset(file, props, "file")
+        return ir.Shape(kind, radius=radius, length=length, size=size, normal=normal, file=file,
+                        scale=props.scalar("scale", U.DIMENSIONLESS, 1.0))
+
+    def _asset(self, relative: str, props: Props, name: str) -> str:
+        """A file the scene names, relative to the file that names it; it must exist."""
+        from pathlib import Path
+
+        here = Path(props.lowerer.file).parent
+        return (here / relative).as_posix() if str(here) != "." else relative
+
+    def _material_of(self, props: Props) -> ir.Material | None:
+        name = props.word("material", None)
+        if name is None:
+            return None
+        for candidate in [p + name for p in props.scope.prefixes()]:
+            if candidate in self.materials:
+                return self.materials[candidate]
+            if candidate in self.broken:
+                raise SceneError(self.reporter.diagnostics)
+        raise props.lowerer.fail(f"unknown material `{name}`", props.node("material"),
+                                 did_you_mean(name, self.materials) or "declare it with `material NAME { ... }`")
+
+    def _orientation(self, props: Props, kinematic: bool):
+        if not props.has("orient"):
+            return (1.0, 0.0, 0.0, 0.0)
+        value = props.typed("orient", ExprContext(time=kinematic))
+        if value.size == 3:
+            # a bare vector is Euler angles, degrees unless a unit says otherwise
+            angles = value.node if value.dim == U.ANGLE else E.mul(value.node, E.Const(math.pi / 180.0))
+            node = E.fold(E.Call("euler", tuple(_components(angles))))
+        elif value.size == 4:
+            node = value.node
+        else:
+            raise props.lowerer.fail("`orient` takes euler(ax, ay, az), axis_angle(axis, angle), quat(w, x, y, z)",
+                                     props.node("orient"))
+        return node if kinematic else props._constant(node, "orient")
+
+    def _mass_properties(self, shape: ir.Shape, motion: str, props: Props, material, decl: Decl):
+        mass = props.scalar("mass", U.MASS)
+        density = props.scalar("density", U.DENSITY, material.density if material else None)
+        self._positive(mass, "mass", props)
+        self._positive(density if props.has("density") else None, "density", props)
+        volume = M.volume(shape)
+        if mass is None and density is not None and volume is not None:
+            mass = density * volume
+        if mass is None:
+            if motion != "dynamic":
+                return None, None
+            raise decl.lowerer.fail(f"body `{decl.name}` needs a mass", decl.tree.children[0],
+                                    "give `mass 1 kg`, a `density`, or a material with a density")
+        given = props.vector("inertia", U.INERTIA)
+        if given is not None:
+            if min(given) <= 0:
+                raise decl.lowerer.fail("principal moments of inertia must be positive", props.node("inertia"))
+            return mass, M.diagonal(given)
+        moments = M.inertia(shape, mass)
+        return mass, (M.diagonal(moments) if moments else None)
+
+    def _modes(self, props: Props):
+        if not props.has("modes"):
+            return None
+        value = props.typed("modes")
+        data = value.node.value if isinstance(value.node, E.Const) else None
+        if not isinstance(data, tuple) or not all(isinstance(m, tuple) and len(m) == 3 for m in data):
+            raise props.lowerer.fail("`modes` takes ((frequency, decay, gain), ...)", props.node("modes"))
+        return data
+
+    def _wind(self, decl: Decl) -> ir.Wind:
+        props = Props(decl.tree.children[1], WIND_PROPS, f"wind `{decl.name}`", decl.lowerer, decl.scope)
+        origin = props.vector("from", U.LENGTH)
+        direction = props.vector("toward", U.DIMENSIONLESS) if origin is not None else props.vector(
+            "direction", U.DIMENSIONLESS)
+        if direction is None:
+            raise decl.lowerer.fail(f"wind `{decl.name}` needs a `direction` (or `from` and `toward`)",
+                                    decl.tree.children[0])
+        direction = _unit(direction, props, "toward" if origin is not None else "direction")
+        speed = props.scalar("speed", U.VELOCITY, E.Const(1.0), time=True, signals=True)
+        return ir.Wind(
+            decl.name, "source" if origin is not None else "uniform", origin, direction, _as_expr(speed),
+            props.word("falloff", ("none", "inverse", "inverse_square"), "none" if origin is None else "inverse_square"),
+            props.scalar("distance", U.LENGTH, 1.0), props.scalar("spread", U.ANGLE, math.radians(30.0)),
+            props.scalar("turbulence", U.DIMENSIONLESS, 0.0), props.scalar("gust", U.TIME, 0.5),
+            props.scalar("air", U.DENSITY, 1.2), str(decl.lowerer.pos(decl.tree)),
+        )
+
+    def _sound(self, decl: Decl, winds: set) -> ir.Sound:
+        trigger_tree = decl.tree.children[1]
+        trigger, bodies, wind, time = self.constraints.trigger(trigger_tree, decl, winds)
+        props = Props(decl.tree.children[2], SOUND_PROPS, f"sound `{decl.name}`", decl.lowerer, decl.scope)
+        if not props.has("play"):
+            raise decl.lowerer.fail(f"sound `{decl.name}` has nothing to `play`", decl.tree.children[0],
+                                    "e.g. `{ play modal(bar) * impulse }`")
+        graph = props.typed("play", ExprContext(time=True, signals=True, audio=True)).node
+        gain_value = props.typed("gain") if props.has("gain") else None
+        gain = 1.0
+        if gain_value is not None:
+            gain = self._gain(gain_value, props)
+        return ir.Sound(decl.name, trigger, bodies, wind, time, graph, gain, str(decl.lowerer.pos(decl.tree)))
+
+    def _gain(self, value, props: Props) -> float:
+        node = props.lowerer.coerce(value, U.DIMENSIONLESS, "`gain`", props.node("gain"))
+        number = props._constant(node, "gain")
+        text = str(props.node("gain"))
+        # "-6 dB" reads as decibels; a plain number is a linear factor
+        return 10.0 ** (number / 20.0) if "dB" in text else number
+
+    def _exclusion(self, decl: Decl) -> ir.Exclusion:
+        names = [self.resolve_body(t, decl) for t in decl.tree.children]
+        if len(names) < 2:
+            raise decl.lowerer.fail("`exclude` names at least two bodies", decl.tree)
+        return ir.Exclusion(tuple(names), str(decl.lowerer.pos(decl.tree)))
+
+    # -- names --------------------------------------------------------------------------------------------
+
+    def resolve_body(self, tree, decl: Decl, allow_world: bool = False) -> str | None:
+        """A body named in a declaration: bound part parameter, then the instance's own, then outward."""
+        from lark import Tree
+
+        if not (isinstance(tree, Tree) and tree.data == "name_ref" and len(tree.children) == 1):
+            raise decl.lowerer.fail("expected a body name", tree)
+        return self.resolve_body_name(ref_text(tree.children[0], decl.scope, decl.lowerer), tree, decl.scope,
+                                      decl.lowerer, allow_world)
+
+    def resolve_body_name(self, name: str, node, scope: Scope, lowerer: ExprLowerer, allow_world=False):
+        if allow_world and name == "world":
+            return None
+        bound = scope.lookup("values", name)
+        candidates = bound.candidates() if isinstance(bound, BodyRef) else [p + name for p in scope.prefixes()]
+        for candidate in candidates:
+            if candidate in self.bodies:
+                return candidate
+        if any(candidate in self.broken for candidate in candidates):
+            raise SceneError(self.reporter.diagnostics)  # already reported where it was declared
+        raise lowerer.fail(f"unknown body `{name}`", node,
+                           did_you_mean(name, self.bodies) or "declare it with `body NAME SHAPE { ... }`")
+
+
+class _EmptyProps:
+    """Stands in for a block that was not written: every getter returns its default."""
+
+    lowerer = None
+
+    def range(self, name, dim):
+        return None
+
+    def scalar(self, name, dim, default=None, **kw):
+        return default
+
+    def vector(self, name, dim, default=None, **kw):
+        return default
+
+    def integer(self, name, default, minimum=0):
+        return default
+
+    def word(self, name, choices, default=None):
+        return default
+
+    def boolean(self, name, default):
+        return default
+
+    def block(self, name, vocabulary, what):
+        return self
+
+    def has(self, name):
+        return False
+
+
+def _as_expr(value) -> E.Expr:
+    return value if isinstance(value, E.Expr) else E.Const(value)
+
+
+def _plain(node: E.Expr):
+    return node.value if isinstance(node, E.Const) else node
+
+
+def _components(node: E.Expr):
+    if isinstance(node, E.Const):
+        return [E.Const(v) for v in node.value]
+    if isinstance(node, E.Vec):
+        return list(node.items)
+    return [E.Call("dot", (node, E.Const(axis))) for axis in ((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0))]
+
+
+def _unit(vector, props: Props, name: str) -> tuple:
+    norm = float(np.linalg.norm(vector))
+    if norm == 0:
+        raise props.lowerer.fail(f"`{name}` must not be the zero vector", props.node(name))
+    return tuple(float(v) / norm for v in vector)

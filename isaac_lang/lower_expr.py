@@ -1,0 +1,396 @@
+"""Lowering of expressions: parse tree -> expression tree with a dimension, constants folded, units in SI.
+
+Names resolve through a `Scope` chain (lets, loop variables, part parameters). A value remembers its
+dimension (`units.Dim`, or None for a bare number); a slot then `coerce`s it, which is where a missing or
+wrong unit becomes a diagnostic.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from lark import Token, Tree
+
+from . import expr as E
+from . import units as U
+from .diagnostics import Reporter, SourcePos, SceneError, did_you_mean
+
+AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+
+# functions of motion that only the runtime can evaluate (a recorded envelope, a live microphone, gusts)
+SIGNAL_FUNCTIONS = {"envelope", "mic", "noise", "gust"}
+# nodes of the audio graph (timbre trees), valid inside a sound's `play`
+AUDIO_FUNCTIONS = {
+    "modal", "noise", "sine", "pulse", "bandpass", "lowpass", "highpass", "decay", "adsr", "delay", "pan",
+    "scrape", "roll", "wind_noise", "whistle", "impact", "mix", "gain", "envelope",
+}
+# motion signals a sound's graph may read (SOUND.md: leaves mapped from the motion)
+AUDIO_SIGNALS = {"impulse", "speed", "normal_force", "wind_speed", "distance", "t"}
+
+
+@dataclass(frozen=True)
+class Typed:
+    """An expression with its dimension and where it was written."""
+
+    node: E.Expr
+    dim: tuple | None
+    pos: SourcePos | None = None
+
+    @property
+    def size(self) -> int:
+        return E.size_of(self.node)
+
+
+@dataclass(frozen=True)
+class BodyRef:
+    """A part parameter bound to a body: the name as written and the instance prefixes to try, innermost first."""
+
+    name: str
+    pos: SourcePos | None = None
+    prefixes: tuple = ("",)
+
+    def candidates(self) -> list:
+        return [prefix + self.name for prefix in self.prefixes]
+
+
+@dataclass
+class Scope:
+    """Names visible at a point of the scene; `prefix` names the part instance being expanded ("left.")."""
+
+    values: dict = field(default_factory=dict)
+    kinds: dict = field(default_factory=dict)
+    parts: dict = field(default_factory=dict)
+    parent: "Scope | None" = None
+    prefix: str = ""
+
+    def child(self, prefix: str | None = None) -> "Scope":
+        return Scope(parent=self, prefix=self.prefix if prefix is None else prefix)
+
+    def lookup(self, table: str, name: str):
+        scope = self
+        while scope is not None:
+            found = getattr(scope, table).get(name)
+            if found is not None:
+                return found
+            scope = scope.parent
+        return None
+
+    def visible(self, table: str) -> set:
+        names, scope = set(), self
+        while scope is not None:
+            names |= set(getattr(scope, table))
+            scope = scope.parent
+        return names
+
+    def prefixes(self) -> list:
+        """Instance prefixes from the innermost out, ending with the scene's (empty) prefix."""
+        out, scope = [], self
+        while scope is not None:
+            if scope.prefix not in out:
+                out.append(scope.prefix)
+            scope = scope.parent
+        if "" not in out:
+            out.append("")
+        return out
+
+
+@dataclass
+class ExprContext:
+    """What an expression may use where it stands."""
+
+    time: bool = True  # may depend on t
+    signals: bool = False  # envelope(), mic(), noise(): wind speeds
+    audio: bool = False  # audio-graph nodes and motion signals: a sound's `play`
+
+
+class ExprLowerer:
+    """Turns expression parse trees into `Typed` values."""
+
+    def __init__(self, file: str, reporter: Reporter):
+        self.file = file
+        self.reporter = reporter
+
+    # -- positions ----------------------------------------------------------------------------------------
+
+    def pos(self, node) -> SourcePos | None:
+        if isinstance(node, Token):
+            return SourcePos(self.file, node.line, node.column, max(1, len(node)))
+        meta = getattr(node, "meta", None)
+        if meta is None or getattr(meta, "empty", True):
+            return None
+        length = meta.end_column - meta.column if meta.end_line == meta.line else 1
+        return SourcePos(self.file, meta.line, meta.column, max(1, length))
+
+    def fail(self, message: str, node, hint: str | None = None) -> SceneError:
+        return self.reporter.fatal(message, self.pos(node), hint)
+
+    # -- the walk -----------------------------------------------------------------------------------------
+
+    def lower(self, tree, scope: Scope, ctx: ExprContext) -> Typed:
+        if isinstance(tree, Token):
+            raise self.fail(f"unexpected `{tree}`", tree)
+        method = getattr(self, "_" + tree.data, None)
+        if method is None:
+            raise self.fail(self._misplaced(tree.data), tree)
+        return method(tree, scope, ctx)
+
+    def _misplaced(self, data: str) -> str:
+        if data in ("anchor", "world_anchor"):
+            return "a body point `body @ (x, y, z)` is only valid as a constraint or force argument"
+        if data == "kwarg":
+            return "a named argument `name = value` is only valid in a call"
+        return f"`{data}` is not valid here"
+
+    def _number(self, tree, scope, ctx) -> Typed:
+        return Typed(E.Const(float(tree.children[0])), None, self.pos(tree))
+
+    def _string(self, tree, scope, ctx) -> Typed:
+        return Typed(E.Str(str(tree.children[0])[1:-1]), U.DIMENSIONLESS, self.pos(tree))
+
+    def _quantity(self, tree, scope, ctx) -> Typed:
+        value_tree, unit = tree.children
+        if isinstance(value_tree, Token):
+            value = Typed(E.Const(float(value_tree)), None, self.pos(tree))
+        else:
+            value = self.lower(value_tree, scope, ctx)
+        try:
+            factor, dim = U.parse_unit(str(unit))
+        except U.UnitError as error:
+            raise self.fail(str(error), unit, "units: m cm mm kg g s ms deg rad Hz N Pa GPa, combined as kg/m3")
+        if value.dim is not None and value.dim != U.DIMENSIONLESS:
+            raise self.fail(f"this value already has a unit ({U.describe(value.dim)})", unit)
+        return Typed(E.mul(value.node, E.Const(factor)), dim, self.pos(tree))
+
+    def _vector(self, tree, scope, ctx) -> Typed:
+        items = [self.lower(child, scope, ctx) for child in tree.children]
+        dim = None
+        for item in items:
+            if item.size:
+                raise self.fail("a vector's components must be numbers", item.pos and tree)
+            try:
+                dim = U.unify(dim, item.dim)
+            except U.UnitError as error:
+                raise self.fail(f"vector components disagree: {error}", tree)
+        return Typed(E.fold(E.Vec(tuple(i.node for i in items))), dim, self.pos(tree))
+
+    def _neg(self, tree, scope, ctx) -> Typed:
+        value = self.lower(tree.children[0], scope, ctx)
+        return Typed(E.neg(value.node), value.dim, self.pos(tree))
+
+    def _add(self, tree, scope, ctx) -> Typed:
+        return self._sum(tree, scope, ctx, E.add)
+
+    def _sub(self, tree, scope, ctx) -> Typed:
+        return self._sum(tree, scope, ctx, E.sub)
+
+    def _sum(self, tree, scope, ctx, build) -> Typed:
+        a, b = (self.lower(child, scope, ctx) for child in tree.children)
+        try:
+            dim = U.unify(a.dim, b.dim)
+        except U.UnitError as error:
+            raise self.fail(str(error), tree)
+        if a.size and b.size and a.size != b.size:
+            raise self.fail(f"cannot combine a {a.size}-vector and a {b.size}-vector", tree)
+        return Typed(build(a.node, b.node), dim, self.pos(tree))
+
+    def _mul(self, tree, scope, ctx) -> Typed:
+        a, b = (self.lower(child, scope, ctx) for child in tree.children)
+        if a.size and b.size:
+            raise self.fail("cannot multiply two vectors with `*`", tree, "use dot(a, b) or cross(a, b)")
+        return Typed(E.mul(a.node, b.node), U.combine(a.dim, b.dim, +1), self.pos(tree))
+
+    def _div(self, tree, scope, ctx) -> Typed:
+        a, b = (self.lower(child, scope, ctx) for child in tree.children)
+        if b.size:
+            raise self.fail("cannot divide by a vector", tree)
+        return Typed(E.fold(E.Op("div", (a.node, b.node))), U.combine(a.dim, b.dim, -1), self.pos(tree))
+
+    def _pow(self, tree, scope, ctx) -> Typed:
+        a, b = (self.lower(child, scope, ctx) for child in tree.children)
+        if b.dim not in (None, U.DIMENSIONLESS):
+            raise self.fail("an exponent must be a plain number", tree.children[1])
+        if a.dim not in (None, U.DIMENSIONLESS):
+            if not isinstance(b.node, E.Const):
+                raise self.fail("a quantity with a unit needs a constant exponent", tree.children[1])
+            try:
+                dim = U.scale_dim(a.dim, b.node.value)
+            except U.UnitError as error:
+                raise self.fail(str(error), tree)
+        else:
+            dim = a.dim
+        return Typed(E.fold(E.Op("pow", (a.node, b.node))), dim, self.pos(tree))
+
+    def _name_ref(self, tree, scope, ctx) -> Typed:
+        parts = [str(t) for t in tree.children]
+        if len(parts) > 1:
+            raise self.fail(f"`{'.'.join(parts)}` names a body direction, which is only valid in a constraint",
+                            tree)
+        return self.name(parts[0], tree, scope, ctx)
+
+    def name(self, name: str, node, scope: Scope, ctx: ExprContext) -> Typed:
+        value = scope.lookup("values", name)
+        if isinstance(value, Typed):
+            return Typed(value.node, value.dim, self.pos(node))
+        if isinstance(value, BodyRef):
+            raise self.fail(f"`{name}` is a body here, not a value", node)
+        if name == "t":
+            if not ctx.time:
+                raise self.fail("this value cannot change over time (`t` is not allowed here)", node)
+            return Typed(E.Var("t"), U.TIME, self.pos(node))
+        if name in E.CONSTANTS:
+            return Typed(E.Const(E.CONSTANTS[name]), None, self.pos(node))
+        if ctx.audio and name in AUDIO_SIGNALS:
+            return Typed(E.Var(name), None, self.pos(node))
+        known = scope.visible("values") | set(E.CONSTANTS) | ({"t"} if ctx.time else set())
+        if ctx.audio:
+            known |= AUDIO_SIGNALS
+        raise self.fail(f"unknown name `{name}`", node, did_you_mean(name, known) or
+                        "declare it with `let NAME = value`")
+
+    def _call(self, tree, scope, ctx) -> Typed:
+        fn = str(tree.children[0])
+        arg_trees = [c for c in tree.children[1:] if c is not None]
+        if scope.lookup("kinds", fn) is not None or fn in CONSTRAINT_CALLS:
+            raise self.fail(f"`{fn}(...)` is a constraint; it is only valid after `constraint NAME`", tree)
+        if fn in E.ARITY:
+            return self._math_call(fn, tree, arg_trees, scope, ctx)
+        if (ctx.signals or ctx.audio) and fn in SIGNAL_FUNCTIONS or ctx.audio and fn in AUDIO_FUNCTIONS:
+            return self._opaque_call(fn, tree, arg_trees, scope, ctx)
+        known = set(E.ARITY) | (SIGNAL_FUNCTIONS if ctx.signals or ctx.audio else set())
+        known |= AUDIO_FUNCTIONS if ctx.audio else set()
+        hint = did_you_mean(fn, known)
+        if fn in SIGNAL_FUNCTIONS and not ctx.signals:
+            hint = f"`{fn}(...)` is a signal: valid in a wind's speed or a sound"
+        raise self.fail(f"unknown function `{fn}`", tree.children[0], hint)
+
+    def _math_call(self, fn, tree, arg_trees, scope, ctx) -> Typed:
+        if len(arg_trees) != E.ARITY[fn]:
+            raise self.fail(f"`{fn}` takes {E.ARITY[fn]} argument(s), got {len(arg_trees)}", tree)
+        args = [self.lower(a, scope, ctx) for a in arg_trees]
+        nodes = tuple(self._angle_arg(fn, i, a) for i, a in enumerate(args))
+        dim = self._call_dim(fn, args, tree)
+        return Typed(E.fold(E.Call(fn, nodes)), dim, self.pos(tree))
+
+    def _angle_arg(self, fn: str, index: int, arg: Typed) -> E.Expr:
+        # euler(...) and axis_angle(axis, angle) take degrees when no unit is written (LANGUAGE.md)
+        if (fn == "euler" or (fn == "axis_angle" and index == 1)) and arg.dim is None:
+            return E.mul(arg.node, E.Const(math.pi / 180.0))
+        return arg.node
+
+    def _call_dim(self, fn: str, args: list, tree):
+        if fn in ("sin", "cos", "tan"):
+            if args[0].dim not in (None, U.DIMENSIONLESS, U.ANGLE, U.TIME):
+                raise self.fail(f"`{fn}` of {U.describe(args[0].dim)}", tree)
+            return None
+        if fn in ("exp", "log", "asin", "acos", "atan", "atan2", "smoothstep", "step", "sign", "floor",
+                  "euler", "axis_angle", "quat", "normalize"):
+            return None
+        if fn == "sqrt":
+            return U.scale_dim(args[0].dim, 0.5) if args[0].dim else None
+        if fn in ("dot", "cross"):
+            return U.combine(args[0].dim, args[1].dim, +1)
+        try:
+            dims = [a.dim for a in args[:2]] if fn == "lerp" else [a.dim for a in args]
+            dim = None
+            for d in dims:
+                dim = U.unify(dim, d)
+            return dim
+        except U.UnitError as error:
+            raise self.fail(f"`{fn}`: {error}", tree)
+
+    def _opaque_call(self, fn, tree, arg_trees, scope, ctx) -> Typed:
+        """A runtime signal or an audio node: arguments lowered, kept as a call the runtime evaluates."""
+        args, kwargs = [], []
+        for a in arg_trees:
+            if isinstance(a, Tree) and a.data == "kwarg":
+                kwargs.append((str(a.children[0]), self.lower(a.children[1], scope, ctx).node))
+            elif isinstance(a, Tree) and a.data == "name_ref" and ctx.audio and len(a.children) == 1 \
+                    and scope.lookup("values", str(a.children[0])) is None \
+                    and str(a.children[0]) not in AUDIO_SIGNALS | {"t"} | set(E.CONSTANTS):
+                # a body, material or wind named as an audio-node argument: modal(bar)
+                args.append(E.Str(str(a.children[0])))
+            else:
+                args.append(self.lower(a, scope, ctx).node)
+        return Typed(E.Call(fn, tuple(args), tuple(sorted(kwargs))), None, self.pos(tree))
+
+    def _keys(self, tree, scope, ctx) -> Typed:
+        interp = "linear"
+        frames = []
+        for child in tree.children:
+            if isinstance(child, Token):
+                interp = str(child)
+            elif child is not None:
+                frames.append(child)
+        if interp not in ("linear", "cubic", "step"):
+            raise self.fail(f"unknown interpolation `{interp}`", tree, "use linear, cubic or step")
+        if not frames:
+            raise self.fail("a keyframe table needs at least one key", tree)
+        times, values, dim = [], [], None
+        for frame in frames:
+            time = self.constant(self.lower(frame.children[0], scope, ctx), U.TIME, "a key's time", frame)
+            value = self.lower(frame.children[1], scope, ctx)
+            if not isinstance(value.node, E.Const):
+                raise self.fail("a key's value must be constant", frame.children[1])
+            try:
+                dim = U.unify(dim, value.dim)
+            except U.UnitError as error:
+                raise self.fail(str(error), frame.children[1])
+            times.append(time)
+            values.append(value.node.value)
+        if any(b <= a for a, b in zip(times, times[1:])):
+            raise self.fail("key times must increase", tree)
+        if len({len(v) if isinstance(v, tuple) else 0 for v in values}) != 1:
+            raise self.fail("all keys must have values of the same size", tree)
+        return Typed(E.Keys(interp, tuple(times), tuple(values)), dim, self.pos(tree))
+
+    # -- slots --------------------------------------------------------------------------------------------
+
+    def coerce(self, value: Typed, dim: tuple, what: str, node, size: int = 0,
+               bare_ok: bool = False) -> E.Expr:
+        """Check value against a slot (its dimension and vector size) and return its SI expression.
+
+        A bare number is SI in a vector slot, degrees in an angle slot, and an error in any other slot with a
+        unit unless `bare_ok` (e.g. a frame rate).
+        """
+        if value.size != size:
+            shape = f"a {size}-vector" if size else "a single number"
+            raise self.fail(f"{what} wants {shape}", node)
+        if value.dim is None:
+            if dim == U.ANGLE and not size:
+                return E.mul(value.node, E.Const(math.pi / 180.0))
+            if dim == U.DIMENSIONLESS or size or bare_ok:
+                return value.node
+            example = U.EXAMPLE_UNIT.get(dim, U.format_dim(dim))
+            raise self.fail(f"{what} needs a unit: it is {U.describe(dim)}", node,
+                            f"write the unit after the number, e.g. `{_example_number(value)} {example}`")
+        if value.dim == dim or (dim == U.DIMENSIONLESS and value.dim == U.ANGLE):
+            return value.node
+        expected = U.EXAMPLE_UNIT.get(dim, U.format_dim(dim))
+        raise self.fail(f"{what} wants {U.describe(dim)}, not {U.describe(value.dim)}", node,
+                        f"use a unit of {U.describe(dim)}, e.g. `{expected}`")
+
+    def constant(self, value: Typed, dim: tuple, what: str, node, size: int = 0, bare_ok=False):
+        node_si = self.coerce(value, dim, what, node, size, bare_ok)
+        if not isinstance(node_si, E.Const):
+            raise self.fail(f"{what} must be constant", node)
+        return node_si.value
+
+
+def _example_number(value: Typed) -> str:
+    if isinstance(value.node, E.Const) and not isinstance(value.node.value, tuple):
+        return f"{value.node.value:g}"
+    return "1"
+
+
+# constraint library calls (kept here so expressions can say "this is a constraint")
+CONSTRAINT_CALLS = {"nail", "point", "orient", "plane", "gear", "rope", "weld",
+                    "tx", "ty", "tz", "rx", "ry", "rz"}
+
+
+def ref_text(token, scope: Scope, lowerer: ExprLowerer) -> str:
+    """The name a reference token stands for: `link{i+1}` is interpolated in the current scope."""
+    if getattr(token, "type", None) == "TNAME":
+        from .expand import interpolate_name
+
+        return interpolate_name(str(token), token, scope, lowerer)
+    return str(token)

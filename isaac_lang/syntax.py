@@ -1,0 +1,118 @@
+"""Stage 1, parse: text -> lark parse tree (LALR, positions kept), syntax errors as diagnostics."""
+from __future__ import annotations
+
+import functools
+from importlib import resources
+
+from lark import Lark, Token, Tree
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+
+from .diagnostics import Reporter, SourcePos, did_you_mean
+
+KEYWORDS = ("scene", "let", "include", "material", "body", "constraint", "kind", "force", "wind", "sound",
+            "camera", "light", "solver", "exclude", "part", "use", "for")
+
+# how the grammar's terminals read in an error message
+TOKEN_WORDS = {
+    "RBRACE": "`}`", "LBRACE": "`{`", "LPAR": "`(`", "RPAR": "`)`", "COMMA": "`,`", "NAME": "a name",
+    "NUMBER": "a number", "STRING": "a quoted file name", "UNIT": "a unit", "EQUAL": "`=`", "COLON": "`:`",
+    "__ANON_0": "`..`", "AT": "`@`", "PLUS": "`+`", "MINUS": "`-`", "STAR": "`*`", "SLASH": "`/`",
+    "TNAME": "a name", "$END": "the end of the file",
+}
+
+
+@functools.lru_cache(maxsize=1)
+def parser() -> Lark:
+    grammar = resources.files("isaac_lang.grammar").joinpath("isaac.lark").read_text(encoding="utf-8")
+    return Lark(grammar, parser="lalr", propagate_positions=True, start=["start", "expr"],
+                maybe_placeholders=True, cache=True)
+
+
+def parse_text(text: str, file: str, reporter: Reporter) -> Tree | None:
+    """Parse a whole file; on a syntax error record a diagnostic and return None."""
+    try:
+        return parser().parse(text, start="start")
+    except UnexpectedInput as error:
+        reporter.error(*describe_syntax_error(error, text, file))
+        return None
+
+
+def parse_expression(text: str) -> Tree:
+    return parser().parse(text, start="expr")
+
+
+def describe_syntax_error(error: UnexpectedInput, text: str, file: str):
+    """(message, position, hint) for a lark error, in the writer's words."""
+    line, col = max(1, error.line), max(1, error.column)
+    if isinstance(error, UnexpectedCharacters):
+        char = text[error.pos_in_stream] if error.pos_in_stream < len(text) else "?"
+        return f"unexpected character `{char}`", SourcePos(file, line, col), _hint_for_character(char)
+    if isinstance(error, UnexpectedEOF) or (isinstance(error, UnexpectedToken) and error.token.type == "$END"):
+        lines = text.splitlines() or [""]
+        pos = SourcePos(file, len(lines), len(lines[-1]) + 1)
+        expected = _expected(error)
+        hint = _unclosed_brace(text) if "RBRACE" in (getattr(error, "expected", None) or ()) else None
+        return f"unexpected end of file; expected {expected}", pos, hint
+    token = error.token
+    pos = SourcePos(file, line, col, max(1, len(str(token))))
+    message = f"unexpected {_token_text(token)}; expected {_expected(error)}"
+    return message, pos, _hint_for_token(token, text, error)
+
+
+def _expected(error) -> str:
+    names = sorted({TOKEN_WORDS.get(name, f"`{name.lower()}`") for name in getattr(error, "expected", ()) or ()})
+    if not names:
+        return "something else"
+    if len(names) > 6:
+        return ", ".join(names[:6]) + ", ..."
+    return ", ".join(names)
+
+
+def _token_text(token: Token) -> str:
+    if token.type == "$END":
+        return "end of file"
+    return f"`{token}`"
+
+
+def _unclosed_brace(text: str) -> str:
+    """Where the `{` that was never closed stands (comments and strings skipped)."""
+    stack = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        code = line.split("#")[0].split("//")[0]
+        in_string = False
+        for col, char in enumerate(code, start=1):
+            if char == '"':
+                in_string = not in_string
+            elif not in_string and char == "{":
+                stack.append((number, col))
+            elif not in_string and char == "}" and stack:
+                stack.pop()
+    if stack:
+        line, col = stack[-1]
+        return f"the `{{` at line {line}, column {col} is never closed: add a `}}`"
+    return "a `}` is missing"
+
+
+def _hint_for_character(char: str) -> str | None:
+    if char in "[]":
+        return "vectors are written with parentheses: (x, y, z)"
+    if char == ";":
+        return "statements need no `;`: put them on separate lines or just one after another"
+    if char == "'":
+        return "file names are written in double quotes"
+    return None
+
+
+def _hint_for_token(token: Token, text: str, error) -> str | None:
+    """Common mistakes: a misspelled keyword at the start of the statement, a missing unit, a missing brace."""
+    line_text = text.splitlines()[token.line - 1] if token.line and token.line <= len(text.splitlines()) else ""
+    first_word = line_text.strip().split(" ")[0].split("{")[0] if line_text.strip() else ""
+    if first_word and first_word not in KEYWORDS:
+        guess = did_you_mean(first_word, KEYWORDS)
+        if guess:
+            return f"`{first_word}` is not a keyword; {guess}"
+    if token.type == "NAME" and str(token) in KEYWORDS:
+        return "a `}` may be missing before this declaration"
+    if token.type == "AT":
+        return "`body @ (x, y, z)` names a point of a body; it goes inside a constraint or force call"
+    return None

@@ -1,0 +1,525 @@
+"""Stage: solve the multiplier system (J M^-1 J^T) lambda = rhs (PHYSICS.md section 2).
+
+Rows come in the RowBlock layout (constraints/layout.py): J (m,2,6) blocks [linear(3), angular(3)] per slot,
+row_bodies (m,2) body indices (-1 = world). Bodies with zero inverse mass/inertia (static, kinematic) contribute
+nothing. Three solvers, all returning (lam (m,), SolveInfo):
+
+* dense   `assemble_dense` + `solve_dense`: A (m,m) built by pairwise comparison of slot bodies, Cholesky;
+          O(m^2) memory, O(m^3) time.
+* sparse  `SparsePattern.build` once per active row set, then `solve_sparse`: A as CSC filled by one
+          bincount per step, scipy SuperLU. Near O(m) for chains and bounded-degree trees.
+* tree    `TreeSolver` (Baraff 1996, "Linear-time dynamics using Lagrange multipliers"), O(nodes), below.
+
+Singular systems (duplicate rows, closed loops, over-constrained mechanisms) never give NaN: dense falls back to
+a minimum-norm pseudo-inverse (eigh), sparse shifts the diagonal by SPARSE_REG_RTOL * max(diag A) and refines,
+tree falls back to sparse. SolveInfo says which path ran, the relative residual and whether A was rank-deficient.
+
+Tree algorithm. Nodes are the dynamic bodies touched by a row (6 unknowns: acceleration) and the constraint
+groups (k unknowns: -lambda); an edge joins a group to each dynamic body it touches. Instead of J M^-1 J^T
+(dense wherever a body carries many joints) factor the always-sparse KKT matrix
+
+    H = [[M, J^T], [J, 0]],   H [a; -lambda] = [0; rhs]     (M a = J^T lambda, J a = rhs)
+
+whose block graph is that tree. With nodes ordered children before parents, H = L D L^T has no fill-in:
+L is unit lower triangular with one off-diagonal block L_pn per node n (p its parent), D block diagonal,
+
+    D_n  = H_nn - sum_{c child of n} L_nc D_c L_nc^T      (H_nn = M_i for a body, 0 for a group)
+    L_pn = H_pn D_n^-1
+
+A body pivot is M_i plus a positive semi-definite term; a group pivot is -J_g (child compliance) J_g^T, negative
+definite when the group's rows are independent on its child bodies. Solve: forward z_n = b_n - sum L_nc z_c
+(children first), diagonal and backward x_n = D_n^-1 z_n - L_pn^T x_p (root first). Every node does a fixed
+number of (6x6, 6xk, kxk) products, so factor + solve cost O(nodes); the loops are Python, the blocks numpy.
+
+A leaf group (pinned to the world or a static body) would have D = 0, so each component is rooted at its one
+grounded group. The world is therefore a node of the graph: a component grounded twice (a chain pinned at both
+ends) is a closed loop through the ground, and `TreeSolver.build` returns None for it as for any other loop.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+import scipy.linalg.lapack
+import scipy.sparse
+import scipy.sparse.linalg
+
+# A Cholesky/LU pivot or eigenvalue below RANK_RTOL * max(diag A) counts as zero (rank-deficient system).
+RANK_RTOL = 1e-10
+# Relative residual ||A lam - rhs|| / ||rhs|| above which a fast path is distrusted and the fallback runs.
+RESIDUAL_RTOL = 1e-8
+# Diagonal shift of the sparse fallback, relative to max(diag A): A + eps I is non-singular.
+SPARSE_REG_RTOL = 1e-11
+# Iterative refinement steps against the unshifted A after the shifted solve (iterated Tikhonov).
+SPARSE_REFINE_STEPS = 4
+# Crossover measured by benchmarks/bench_linsolve.py, see choose_solver.
+DENSE_MAX_ROWS = 60
+
+
+@dataclass
+class SolveInfo:
+    """How a solve went. method: "cholesky" | "pinv" | "lu" | "lu+shift" | "tree" | "tree->lu" | ...;
+    residual: ||A lam - rhs|| / ||rhs|| (absolute if rhs = 0); rank: numerical rank when known (None for the
+    fast paths, which only know "full"); regularization: absolute diagonal shift added (0 if none);
+    note: why a fallback ran."""
+
+    method: str
+    residual: float
+    rank_deficient: bool
+    rank: int | None = None
+    regularization: float = 0.0
+    note: str = ""
+
+
+def _relative_residual(r: np.ndarray, rhs: np.ndarray) -> float:
+    nb = np.linalg.norm(rhs)
+    nr = np.linalg.norm(r)
+    return float(nr / nb) if nb > 0 else float(nr)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# M^-1 J^T and the dense path
+# ---------------------------------------------------------------------------------------------------------
+
+
+def apply_inverse_mass(J, row_bodies, inv_mass, inv_inertia_world, out=None) -> np.ndarray:
+    """M^-1 J^T per slot: out (m,2,6) = [inv_mass_b * J_lin, invI_b @ J_ang] with b = row_bodies; 0 for world.
+
+    J (m,2,6), row_bodies (m,2) int, inv_mass (n,), inv_inertia_world (n,3,3).
+    """
+    if out is None:
+        out = np.empty(J.shape)
+    valid = row_bodies >= 0
+    b = np.where(valid, row_bodies, 0)
+    # (M^-1 J^T)_lin = J_lin / m_b
+    np.multiply(inv_mass[b][..., None], J[..., :3], out=out[..., :3])
+    # (M^-1 J^T)_ang = I_b^-1 J_ang  (world frame)
+    out[..., 3:] = np.einsum("rsij,rsj->rsi", inv_inertia_world[b], J[..., 3:])
+    out[~valid] = 0.0
+    return out
+
+
+def assemble_dense(J, row_bodies, inv_mass, inv_inertia_world, out=None) -> np.ndarray:
+    """A (m,m) = J M^-1 J^T, vectorized over rows: four slot pairings, each a masked (m,6)x(6,m) product.
+
+    A[r,c] = sum_{s,t in {0,1}} [body(r,s) == body(c,t) != world] J[r,s] . (M^-1 J^T)[c,t]
+    """
+    m = J.shape[0]
+    A = np.zeros((m, m)) if out is None else out
+    A[...] = 0.0
+    MJ = apply_inverse_mass(J, row_bodies, inv_mass, inv_inertia_world)
+    for s in (0, 1):
+        for t in (0, 1):
+            same = np.equal.outer(row_bodies[:, s], row_bodies[:, t])
+            same &= (row_bodies[:, s] >= 0)[:, None]
+            A += (J[:, s] @ MJ[:, t].T) * same
+    return A
+
+
+def _pinv_solve(A, rhs):
+    """Minimum-norm least-squares lam = A^+ rhs by symmetric eigendecomposition; returns (lam, rank)."""
+    w, V = np.linalg.eigh(A)
+    cutoff = RANK_RTOL * max(float(np.max(np.abs(w), initial=0.0)), float(np.max(np.diag(A), initial=0.0)))
+    keep = w > cutoff
+    # lam = V diag(1/w, kept) V^T rhs
+    coef = np.zeros_like(w)
+    coef[keep] = (V[:, keep].T @ rhs) / w[keep]
+    return V @ coef, int(np.count_nonzero(keep))
+
+
+def solve_dense(A, rhs) -> tuple[np.ndarray, SolveInfo]:
+    """Solve A lam = rhs, A (m,m) symmetric positive semi-definite. Cholesky; pseudo-inverse if A is singular
+    (a pivot below RANK_RTOL * max diag), Cholesky fails, or the residual exceeds RESIDUAL_RTOL."""
+    rhs = np.asarray(rhs, dtype=float)
+    m = len(rhs)
+    if m == 0:
+        return np.zeros(0), SolveInfo("cholesky", 0.0, False, 0)
+    scale = float(np.max(np.diag(A)))
+    note = ""
+    if scale > 0:
+        try:
+            c, low = scipy.linalg.cho_factor(A, lower=True, check_finite=False)
+            min_pivot = float(np.min(np.diag(c))) ** 2
+            if min_pivot > RANK_RTOL * scale:
+                lam = scipy.linalg.cho_solve((c, low), rhs, check_finite=False)
+                res = _relative_residual(A @ lam - rhs, rhs) if np.all(np.isfinite(lam)) else np.inf
+                if res <= RESIDUAL_RTOL:
+                    return lam, SolveInfo("cholesky", res, False)
+                note = f"cholesky residual {res:.1e}"
+            else:
+                note = f"cholesky pivot {min_pivot / scale:.1e} of max diagonal"
+        except (np.linalg.LinAlgError, ValueError):
+            note = "cholesky failed (not positive definite)"
+    else:
+        note = "A is zero"
+    return _dense_fallback(A, rhs, note)
+
+
+def _dense_fallback(A, rhs, note):
+    try:
+        lam, rank = _pinv_solve(A, rhs)
+    except np.linalg.LinAlgError:
+        lam, rank = np.zeros(len(rhs)), 0
+        note += "; eigh failed, lam = 0"
+    if not np.all(np.isfinite(lam)):
+        lam, note = np.zeros(len(rhs)), note + "; non-finite, lam = 0"
+    res = _relative_residual(A @ lam - rhs, rhs)
+    return lam, SolveInfo("pinv", res, rank < len(rhs), rank, 0.0, note)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Sparse path
+# ---------------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class SparsePattern:
+    """CSC structure of A = J M^-1 J^T for one active row set, and where each product lands in its data.
+
+    A[r,c] += J[pr,ps] . (M^-1 J^T)[qr,qs] for every pair of (row, slot) touching the same dynamic body;
+    the pair lands in data[p_dest]. indices, indptr: CSC arrays; diag (m,) data index of A[i,i].
+    """
+
+    m: int
+    row_bodies: np.ndarray  # (m,2) the slots the pattern was built from
+    indices: np.ndarray
+    indptr: np.ndarray
+    diag: np.ndarray
+    pr: np.ndarray
+    ps: np.ndarray
+    qr: np.ndarray
+    qs: np.ndarray
+    p_dest: np.ndarray
+
+    @classmethod
+    def build(cls, row_bodies, n_bodies, dynamic_mask) -> "SparsePattern":
+        rb = np.asarray(row_bodies, dtype=np.int64).reshape(-1, 2)
+        m = len(rb)
+        dyn = (rb >= 0) & np.asarray(dynamic_mask, bool)[np.clip(rb, 0, max(n_bodies - 1, 0))]
+        rows, slots = np.nonzero(dyn)
+        body = rb[rows, slots]
+        order = np.argsort(body, kind="stable")
+        rows, slots, body = rows[order], slots[order], body[order]
+        starts = np.flatnonzero(np.r_[True, body[1:] != body[:-1]]) if len(body) else np.zeros(0, np.int64)
+        ends = np.r_[starts[1:], len(body)].astype(np.int64)
+        pi, qi = [], []
+        for a, e in zip(starts, ends):  # all (row, slot) pairs sharing body `body[a]`
+            idx = np.arange(a, e)
+            pi.append(np.repeat(idx, e - a))
+            qi.append(np.tile(idx, e - a))
+        pi = np.concatenate(pi) if pi else np.zeros(0, np.int64)
+        qi = np.concatenate(qi) if qi else np.zeros(0, np.int64)
+        pr, ps, qr, qs = rows[pi], slots[pi], rows[qi], slots[qi]
+        # CSC order: key = column * m + row; the diagonal is always stored (zero rows, regularization).
+        diag_keys = np.arange(m, dtype=np.int64) * (m + 1)
+        keys, inverse = np.unique(np.r_[qr * m + pr, diag_keys], return_inverse=True)
+        p_dest = inverse[: len(pr)]
+        indptr = np.r_[0, np.cumsum(np.bincount(keys // max(m, 1), minlength=m))].astype(np.int64)
+        rows_of_keys = (keys % max(m, 1)).astype(np.int64)
+        return cls(m, rb, rows_of_keys, indptr, inverse[len(pr):], pr, ps, qr, qs, p_dest)
+
+    def assemble(self, J, MJ) -> scipy.sparse.csc_matrix:
+        """A = J M^-1 J^T as CSC from J (m,2,6) and MJ = apply_inverse_mass(...) (m,2,6)."""
+        vals = np.einsum("pk,pk->p", J[self.pr, self.ps], MJ[self.qr, self.qs])
+        data = np.bincount(self.p_dest, weights=vals, minlength=len(self.indices))
+        return scipy.sparse.csc_matrix((data, self.indices, self.indptr), shape=(self.m, self.m))
+
+
+def _splu(A):
+    # A is symmetric: minimum degree on A^T + A, diagonal pivots (SuperLU's symmetric mode).
+    return scipy.sparse.linalg.splu(
+        A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)
+    )
+
+
+def solve_sparse(pattern: SparsePattern, J, inv_mass, inv_inertia_world, rhs) -> tuple[np.ndarray, SolveInfo]:
+    """Assemble A on `pattern` and solve A lam = rhs with SuperLU. On a pivot below RANK_RTOL * max(diag A),
+    a failed factorization or a residual above RESIDUAL_RTOL: factor A + eps I (eps = SPARSE_REG_RTOL *
+    max diag), refine against A, report eps."""
+    rhs = np.asarray(rhs, dtype=float)
+    if pattern.m == 0:
+        return np.zeros(0), SolveInfo("lu", 0.0, False, 0)
+    MJ = apply_inverse_mass(J, pattern.row_bodies, inv_mass, inv_inertia_world)
+    A = pattern.assemble(J, MJ)
+    return _solve_sparse_matrix(pattern, A, rhs)
+
+
+def _solve_sparse_matrix(pattern, A, rhs):
+    d = A.data[pattern.diag]
+    scale = float(np.max(d))
+    note = "A is zero"
+    if scale > 0:
+        try:
+            lu = _splu(A)
+            piv = np.abs(lu.U.diagonal())
+            if float(np.min(piv)) > RANK_RTOL * scale:
+                lam = lu.solve(rhs)
+                res = _relative_residual(A @ lam - rhs, rhs) if np.all(np.isfinite(lam)) else np.inf
+                if res <= RESIDUAL_RTOL:
+                    return lam, SolveInfo("lu", res, False)
+                note = f"lu residual {res:.1e}"
+            else:
+                note = f"lu pivot {float(np.min(piv)) / scale:.1e} of max diagonal"
+        except RuntimeError:
+            note = "lu failed (exactly singular)"
+    return _sparse_shifted(pattern, A, rhs, scale, note)
+
+
+def _sparse_shifted(pattern, A, rhs, scale, note):
+    m = pattern.m
+    if scale <= 0:
+        return np.zeros(m), SolveInfo("lu+shift", _relative_residual(-rhs, rhs), True, 0, 0.0, note)
+    eps = SPARSE_REG_RTOL * scale
+    As = A.copy()
+    As.data[pattern.diag] += eps
+    lu = _splu(As)
+    rank = int(np.count_nonzero(np.abs(lu.U.diagonal()) > RANK_RTOL * scale))
+    # iterated Tikhonov: lam_{k+1} = lam_k + (A + eps I)^-1 (rhs - A lam_k), lam_0 = 0
+    lam = np.zeros(m)
+    r = rhs.copy()
+    res = _relative_residual(r, rhs)
+    for _ in range(1 + SPARSE_REFINE_STEPS):
+        step = lu.solve(r)
+        r_new = rhs - A @ (lam + step)
+        res_new = _relative_residual(r_new, rhs)
+        if not (np.all(np.isfinite(step)) and res_new < 0.5 * res):
+            break
+        lam += step
+        r, res = r_new, res_new
+    return lam, SolveInfo("lu+shift", res, rank < m, rank, eps, note)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Tree path (Baraff 1996)
+# ---------------------------------------------------------------------------------------------------------
+
+
+class TreeSolver:
+    """Linear-time block LDL^T of the KKT matrix on a forest of bodies and constraint groups (module docstring).
+
+    Built once per active row set; holds the elimination order and per-node views into persistent buffers so
+    that `solve` does a fixed number of small numpy products per node.
+    """
+
+    @classmethod
+    def build(cls, row_bodies, row_group, n_bodies, dynamic_mask) -> "TreeSolver | None":
+        rb = np.asarray(row_bodies, dtype=np.int64).reshape(-1, 2)
+        dmask = np.asarray(dynamic_mask, dtype=bool)
+        dyn = (rb >= 0) & dmask[np.clip(rb, 0, max(n_bodies - 1, 0))]
+        _, gidx = np.unique(np.asarray(row_group).reshape(-1), return_inverse=True)
+        ng = int(gidx.max()) + 1 if len(gidx) else 0
+        # a row with fewer than two distinct dynamic bodies acts against the world: its group is grounded
+        internal = dyn.all(axis=1) & (rb[:, 0] != rb[:, 1])
+        grounded = np.bincount(gidx[~internal], minlength=ng) > 0
+        rows, slots = np.nonzero(dyn)
+        ebody, egroup = rb[rows, slots], gidx[rows]
+        edge_keys, rs_edge = np.unique(egroup * max(n_bodies, 1) + ebody, return_inverse=True)
+        edge_group, edge_body = edge_keys // max(n_bodies, 1), edge_keys % max(n_bodies, 1)
+        bodies = np.unique(edge_body)  # node bodies: dynamic and touched by a row
+        graph = _Forest(len(bodies), ng, np.searchsorted(bodies, edge_body), edge_group, grounded)
+        if not graph.ok:
+            return None
+        self = cls()
+        self._setup(rb, gidx, ng, n_bodies, dmask, bodies, graph, rows, slots, rs_edge, edge_group)
+        return self
+
+    def _setup(self, rb, gidx, ng, n_bodies, dmask, bodies, graph, rows, slots, rs_edge, edge_group):
+        m, nb = len(rb), len(bodies)
+        self.row_bodies, self.n_bodies, self.dynamic_mask = rb, n_bodies, dmask
+        self.bodies = bodies
+        k = np.bincount(gidx, minlength=ng)
+        kmax = int(k.max()) if ng else 1
+        order = np.argsort(gidx, kind="stable")
+        local = np.empty(m, np.int64)
+        local[order] = np.arange(m) - np.r_[0, np.cumsum(k)][gidx[order]]
+        # persistent buffers; every per-node array below is a view into them
+        self.edge_J = np.zeros((len(edge_group), kmax, 6))  # (E,kmax,6) J_gb, rows of g in local order
+        self.rs = (rows, slots, rs_edge, local[rows])
+        self.Pb = np.zeros((nb, 6, 6))  # body pivots D_n
+        self.Pg = np.zeros((ng, kmax, kmax))  # group pivots D_n
+        size = np.full(len(graph.kind), 6, dtype=np.int64)  # unknowns per node: 6 per body, k per group
+        size[graph.kind == 1] = k[graph.index[graph.kind == 1]]
+        offset = np.r_[0, np.cumsum(size)]
+        self.z, self.x = np.zeros(offset[-1]), np.zeros(offset[-1])
+        self.row_flat = offset[graph.position_of_group][gidx] + local  # where row r's multiplier sits
+        self.P, self.zv, self.xv, self.links = [], [], [], []
+        for n, (kind, i) in enumerate(zip(graph.kind, graph.index)):
+            self.P.append(self.Pb[i] if kind == 0 else self.Pg[i, : k[i], : k[i]])
+            self.zv.append(self.z[offset[n] : offset[n + 1]])
+            self.xv.append(self.x[offset[n] : offset[n + 1]])
+            p = graph.parent[n]
+            if p >= 0:  # H_pn: rows of the parent, columns of n
+                e = graph.parent_edge[n]
+                Jgb = self.edge_J[e, : k[edge_group[e]]]
+                H = Jgb if kind == 0 else Jgb.T
+                self.links.append((n, p, H, H.T))
+        self.n_nodes = len(graph.kind)
+        self._fallback = None
+
+    def solve(self, J, inv_mass, inv_inertia_world, rhs) -> tuple[np.ndarray, SolveInfo]:
+        """lam with (J M^-1 J^T) lam = rhs, O(nodes). Falls back to the sparse solver (method "tree->lu" or
+        "tree->lu+shift") on a singular pivot, a non-invertible body mass, or a residual above RESIDUAL_RTOL."""
+        rhs = np.asarray(rhs, dtype=float)
+        rows, slots, rs_edge, rs_local = self.rs
+        self.edge_J.fill(0.0)
+        np.add.at(self.edge_J, (rs_edge, rs_local), J[rows, slots])
+        try:
+            with np.errstate(all="ignore"):
+                self._body_masses(inv_mass, inv_inertia_world)
+                Dinv, L = self._factor()
+                lam = self._substitute(Dinv, L, rhs)
+            bad = self._bad_pivot()
+        except np.linalg.LinAlgError:
+            bad = "singular pivot"
+        if not bad:
+            res = self._residual(J, inv_mass, inv_inertia_world, lam, rhs)
+            if res <= RESIDUAL_RTOL:
+                return lam, SolveInfo("tree", res, False)
+            bad = f"tree residual {res:.1e}"
+        return self._solve_fallback(J, inv_mass, inv_inertia_world, rhs, bad)
+
+    def _body_masses(self, inv_mass, inv_inertia_world):
+        b = self.bodies
+        if np.any(inv_mass[b] <= 0):
+            raise np.linalg.LinAlgError("zero inverse mass on a tree body")
+        # M_i = diag(m_i I3, I_world,i) with m_i = 1 / inv_mass_i, I_world,i = (inv_inertia_world_i)^-1
+        self.Pb.fill(0.0)
+        self.Pb[:, :3, :3] = np.eye(3) / inv_mass[b][:, None, None]
+        self.Pb[:, 3:, 3:] = np.linalg.inv(inv_inertia_world[b])
+        self.Pg.fill(0.0)
+
+    def _factor(self):
+        # LAPACK getrf + getri directly: a third of np.linalg.inv's per-call overhead on 3x3 and 6x6 blocks
+        P, getrf, getri = self.P, scipy.linalg.lapack.dgetrf, scipy.linalg.lapack.dgetri
+        Dinv, L = [None] * self.n_nodes, [None] * self.n_nodes
+        links = iter(self.links)
+        nxt = next(links, None)
+        for n in range(self.n_nodes):  # children before parents
+            # D_n^-1 (D_n already holds H_nn - sum_c L_nc D_c L_nc^T from its children)
+            lu, piv, info = getrf(P[n])
+            Dinv[n], info2 = getri(lu, piv)
+            if info or info2:
+                raise np.linalg.LinAlgError("singular pivot")
+            if nxt is not None and nxt[0] == n:
+                _, p, H, HT = nxt
+                # L_pn = H_pn D_n^-1
+                L[n] = H @ Dinv[n]
+                # D_p -= L_pn D_n L_pn^T = L_pn H_np
+                P[p] -= L[n] @ HT
+                nxt = next(links, None)
+        return Dinv, L
+
+    def _substitute(self, Dinv, L, rhs):
+        z, zv, xv = self.z, self.zv, self.xv
+        # b = [0 for bodies; rhs for groups]
+        z.fill(0.0)
+        z[self.row_flat] = rhs
+        # forward, children first: z_p -= L_pn z_n
+        for n, p, _, _ in self.links:
+            zv[p] -= L[n] @ zv[n]
+        # diagonal: x_n = D_n^-1 z_n
+        for n in range(self.n_nodes):
+            np.matmul(Dinv[n], zv[n], out=xv[n])
+        # backward, root first: x_n -= L_pn^T x_p
+        for n, p, _, _ in reversed(self.links):
+            xv[n] -= L[n].T @ xv[p]
+        # the group unknowns are -lambda
+        return -self.x[self.row_flat]
+
+    def _bad_pivot(self):
+        # every group pivot -D_g must be positive definite: eigenvalues of all blocks at once (padding = I)
+        if not len(self.Pg):
+            return ""
+        kmax = self.Pg.shape[1]
+        S = -self.Pg
+        pad = np.all(S == 0.0, axis=2) & np.all(S == 0.0, axis=1)
+        S[:, np.arange(kmax), np.arange(kmax)] += pad  # unused (padding) rows/cols become identity
+        if not np.all(np.isfinite(S)):
+            return "non-finite pivot"
+        w = np.linalg.eigvalsh(S)
+        if np.any(w[:, 0] <= RANK_RTOL * np.abs(w[:, -1])):
+            return "singular group pivot"
+        return ""
+
+    def _residual(self, J, inv_mass, inv_inertia_world, lam, rhs):
+        if not np.all(np.isfinite(lam)):
+            return np.inf
+        rb = self.row_bodies
+        MJ = apply_inverse_mass(J, rb, inv_mass, inv_inertia_world)
+        # a = M^-1 J^T lam per body, then J a
+        f = np.zeros((max(self.n_bodies, 1), 6))
+        valid = rb >= 0
+        np.add.at(f, rb[valid], (MJ * lam[:, None, None])[valid])
+        Ja = np.einsum("rsk,rsk->r", J, np.where(valid[..., None], f[np.maximum(rb, 0)], 0.0))
+        return _relative_residual(Ja - rhs, rhs)
+
+    def _solve_fallback(self, J, inv_mass, inv_inertia_world, rhs, why):
+        if self._fallback is None:
+            self._fallback = SparsePattern.build(self.row_bodies, self.n_bodies, self.dynamic_mask)
+        lam, info = solve_sparse(self._fallback, J, inv_mass, inv_inertia_world, rhs)
+        info.method = "tree->" + info.method
+        info.note = why + ("; " + info.note if info.note else "")
+        return lam, info
+
+
+class _Forest:
+    """Nodes: bodies 0..nb-1, groups nb..nb+ng-1, and the world. Finds whether the graph is a forest and, if
+    so, an elimination order (children before parents), each component rooted at its grounded group."""
+
+    def __init__(self, nb, ng, edge_body, edge_group, grounded):
+        world = nb + ng
+        adj = [[] for _ in range(world + 1)]
+        edges = [(b, nb + g, e) for e, (b, g) in enumerate(zip(edge_body, edge_group))]
+        edges += [(world, nb + g, -1) for g in np.flatnonzero(grounded)]
+        parent_uf = list(range(world + 1))
+
+        def find(a):
+            while parent_uf[a] != a:
+                parent_uf[a] = parent_uf[parent_uf[a]]
+                a = parent_uf[a]
+            return a
+
+        self.ok = True
+        for a, c, e in edges:
+            ra, rc = find(a), find(c)
+            if ra == rc:  # a second path between two nodes: a closed loop
+                self.ok = False
+                return
+            parent_uf[ra] = rc
+            adj[a].append((c, e))
+            adj[c].append((a, e))
+        # breadth first from the world (so grounded groups are roots), then from every unreached node
+        seen = [False] * (world + 1)
+        bfs, par, pedge = [], {}, {}
+        for root in [world] + list(range(world)):
+            if seen[root]:
+                continue
+            seen[root] = True
+            par[root], pedge[root] = -1, -1
+            queue = deque([root])
+            while queue:
+                a = queue.popleft()
+                bfs.append(a)
+                for c, e in adj[a]:
+                    if not seen[c]:
+                        seen[c] = True
+                        par[c], pedge[c] = (a if a != world else -1), e
+                        queue.append(c)
+        elim = [a for a in reversed(bfs) if a != world]
+        pos = {a: i for i, a in enumerate(elim)}
+        self.kind = np.array([0 if a < nb else 1 for a in elim], dtype=np.int64)
+        self.index = np.array([a if a < nb else a - nb for a in elim], dtype=np.int64)
+        self.parent = np.array([pos[par[a]] if par[a] >= 0 else -1 for a in elim], dtype=np.int64)
+        self.parent_edge = np.array([pedge[a] for a in elim], dtype=np.int64)
+        self.position_of_group = np.array([pos[nb + g] for g in range(ng)], dtype=np.int64)
+        # the flat layout of the unknowns follows the elimination order
+
+
+def choose_solver(m_rows: int, tree_available: bool) -> str:
+    """Pick the solver for m_rows active rows. Rule measured on ball-jointed chains (bench_linsolve.py):
+    dense below DENSE_MAX_ROWS rows, else sparse; see the numbers in the comment of DENSE_MAX_ROWS."""
+    if m_rows <= DENSE_MAX_ROWS:
+        return "dense"
+    return "sparse"
