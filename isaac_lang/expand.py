@@ -5,15 +5,17 @@ can resolve names once every body, material and wind is known, whatever the orde
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from lark import Token, Tree
+from lark.exceptions import UnexpectedInput
 
 from . import expr as E
 from . import units as U
 from .diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean, display_path
-from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, Typed
+from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, Typed, ref_name
 from .syntax import parse_expression, parse_text
 
 DECLARATIONS = ("material", "body", "constraint", "force", "wind", "sound", "camera", "light", "exclude")
@@ -57,7 +59,9 @@ class Expander:
         self.limits = limits
         self.out = Expansion()
         self.include_stack: list[Path] = []
-        self.count = 0
+        self.count = 0  # declarations so far
+        self.expansions = 0  # loop iterations and part instances so far (a loop of lets counts too)
+        self.halted = False  # a runaway was reported once; the expansion then stops quietly
 
     # -- files --------------------------------------------------------------------------------------------
 
@@ -141,6 +145,7 @@ class Expander:
 
     def _include(self, item, scope, lowerer, depth):
         if depth >= self.limits.max_depth:
+            self.halted = True
             raise lowerer.fail("includes nested too deeply", item, "is there an include cycle?")
         relative = str(item.children[0])[1:-1]
         here = self.include_stack[-1].parent if self.include_stack else self.root
@@ -158,7 +163,10 @@ class Expander:
             raise lowerer.fail(f"unknown part `{part_name}`", item.children[0],
                                did_you_mean(part_name, scope.visible("parts")) or "declare it with `part NAME(...) { ... }`")
         if depth >= self.limits.max_depth:
+            self.halted = True
             raise lowerer.fail("parts nested too deeply", item, "does a part use itself?")
+        if not self._spend(1, 0, item, lowerer):
+            return
         part_tree, part_lowerer = found
         instance = self.decl_name(item.children[1], scope, lowerer)
         inner = Scope(parent=scope, prefix=scope.prefix + instance + ".")
@@ -189,9 +197,9 @@ class Expander:
 
     def _part_argument(self, tree, scope, lowerer):
         """A part argument is a value, or a body name (then the part can attach to that body)."""
-        if isinstance(tree, Tree) and tree.data == "name_ref" and len(tree.children) == 1:
-            name = str(tree.children[0])
-            bound = scope.lookup("values", name)
+        if isinstance(tree, Tree) and tree.data == "name_ref":
+            name = ref_name(tree, scope, lowerer)  # `beam`, `link{i}`, `upper.bob`
+            bound = scope.lookup("values", name) if len(tree.children) == 1 else None
             if isinstance(bound, BodyRef):
                 return bound
             if bound is None and name not in E.CONSTANTS and name != "t":
@@ -204,14 +212,23 @@ class Expander:
         start = self._integer(start_tree, scope, lowerer)
         end = self._integer(end_tree, scope, lowerer)
         body = item.children[3:]
-        if (end - start) * max(1, len(body)) + self.count > self.limits.max_items:
-            raise lowerer.fail(f"this loop would expand to {(end - start) * len(body)} declarations, "
-                               f"over the limit of {self.limits.max_items}", item,
-                               "raise the limit with --max-items if you mean it")
+        if not self._spend(max(0, end - start), len(body), item, lowerer):
+            return
         for i in range(start, end):
             inner = scope.child()
             inner.values[str(var)] = Typed(E.Const(float(i)), None, lowerer.pos(var))
             self.items(body, inner, lowerer, depth, top=False)
+
+    def _spend(self, times: int, size: int, item, lowerer) -> bool:
+        """Account for `times` expansions of `size` items; False (quietly) once the limit was reported."""
+        if self.halted:
+            return False  # a runaway was reported already
+        self.expansions += times
+        if times * max(1, size) + self.count > self.limits.max_items or self.expansions > self.limits.max_items:
+            self.halted = True
+            raise lowerer.fail(f"this expands the scene beyond the limit of {self.limits.max_items} declarations",
+                               item, "raise the limit with --max-items if you mean it")
+        return True
 
     def _integer(self, tree, scope, lowerer) -> int:
         value = lowerer.lower(tree, scope, ExprContext(time=False))
@@ -221,8 +238,11 @@ class Expander:
         return int(value.node.value)
 
     def _declaration(self, kind, item, scope, lowerer):
+        if self.halted:
+            return
         self.count += 1
         if self.count > self.limits.max_items:
+            self.halted = True
             raise lowerer.fail(f"the scene expands to more than {self.limits.max_items} declarations", item,
                                "raise the limit with --max-items if you mean it")
         name = None
@@ -246,10 +266,28 @@ def interpolate_name(text: str, token, scope: Scope, lowerer: ExprLowerer) -> st
     while "{" in rest:
         head, _, tail = rest.partition("{")
         inner, _, rest = tail.partition("}")
-        value = lowerer.lower(parse_expression(inner), scope, ExprContext(time=False))
-        number = value.node.value if isinstance(value.node, E.Const) else None
-        if not isinstance(number, float) or number != int(number):
-            raise lowerer.fail(f"`{{{inner}}}` in a name must be a whole number", token)
-        out.append(head + str(int(number)))
+        out.append(head + str(_name_piece(inner, token, scope, lowerer)))
     out.append(rest)
     return "".join(out)
+
+
+def _name_piece(inner: str, token, scope: Scope, lowerer: ExprLowerer) -> int:
+    """The whole number `{inner}` stands for; a problem inside the braces is reported at the name."""
+    scratch = ExprLowerer(lowerer.file, Reporter())  # positions inside `inner` are not the file's
+    try:
+        value = scratch.lower(_piece_tree(inner), scope, ExprContext(time=False))
+    except UnexpectedInput:
+        raise lowerer.fail(f"cannot read `{{{inner}}}` in a name", token, "write e.g. `link{i+1}`") from None
+    except SceneError as error:
+        first = error.diagnostics[0]
+        raise lowerer.fail(f"in `{{{inner}}}`: {first.message}", token, first.hint) from None
+    number = value.node.value if isinstance(value.node, E.Const) else None
+    if not isinstance(number, float) or number != int(number):
+        raise lowerer.fail(f"`{{{inner}}}` in a name must be a whole number", token)
+    return int(number)
+
+
+@functools.lru_cache(maxsize=4096)
+def _piece_tree(inner: str) -> Tree:
+    """Parse trees of the `{...}` pieces of names, parsed once each (a loop repeats the same few)."""
+    return parse_expression(inner)

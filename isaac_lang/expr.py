@@ -394,7 +394,8 @@ def fold(node: Expr) -> Expr:
         return node
     if free_vars(node) or _has_unknown_call(node):
         return node
-    value = evaluate(node, {})
+    with np.errstate(all="ignore"):  # log(0), 0/0: a non-finite constant, which the lowering reports
+        value = evaluate(node, {})
     return Const(to_tuple(value))
 
 

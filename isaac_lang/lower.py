@@ -12,7 +12,7 @@ from . import units as U
 from .diagnostics import Reporter, SceneError, SourcePos, did_you_mean
 from .expand import Decl, Expansion
 from .lower_constraints import ConstraintLowerer
-from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, ref_text
+from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, ref_name
 from .props import Props
 from .syntax import KEYWORDS
 
@@ -391,10 +391,10 @@ class SceneLowerer:
         """A body named in a declaration: bound part parameter, then the instance's own, then outward."""
         from lark import Tree
 
-        if not (isinstance(tree, Tree) and tree.data == "name_ref" and len(tree.children) == 1):
+        if not (isinstance(tree, Tree) and tree.data == "name_ref"):
             raise decl.lowerer.fail("expected a body name", tree)
-        return self.resolve_body_name(ref_text(tree.children[0], decl.scope, decl.lowerer), tree, decl.scope,
-                                      decl.lowerer, allow_world)
+        return self.resolve_body_name(ref_name(tree, decl.scope, decl.lowerer), tree, decl.scope, decl.lowerer,
+                                      allow_world)
 
     def resolve_body_name(self, name: str, node, scope: Scope, lowerer: ExprLowerer, allow_world=False):
         if allow_world and name == "world":

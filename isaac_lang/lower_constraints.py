@@ -15,7 +15,7 @@ from . import expr as E
 from . import ir
 from . import units as U
 from .diagnostics import did_you_mean
-from .lower_expr import AXES, BodyRef, ExprContext, Scope, Typed, ref_text
+from .lower_expr import AXES, BodyRef, ExprContext, Scope, Typed, ref_name, ref_text
 from .props import Props
 
 ELEMENTS = {"tx": ("x", False), "ty": ("y", False), "tz": ("z", False),
@@ -135,9 +135,9 @@ class ConstraintLowerer:
         return self.terms(body, inner, Decl(decl.kind, decl.name, decl.tree, inner, kind_lowerer))
 
     def _kind_argument(self, arg, scope, decl):
-        if isinstance(arg, Tree) and arg.data == "name_ref" and len(arg.children) == 1:
-            name = ref_text(arg.children[0], scope, decl.lowerer)
-            bound = scope.lookup("values", name)
+        if isinstance(arg, Tree) and arg.data == "name_ref":
+            name = ref_name(arg, scope, decl.lowerer)
+            bound = scope.lookup("values", name) if len(arg.children) == 1 else None
             if isinstance(bound, (BodyRef, Typed)):
                 return bound
             return BodyRef(self.scene.resolve_body_name(name, arg, scope, decl.lowerer), decl.lowerer.pos(arg))
@@ -146,9 +146,8 @@ class ConstraintLowerer:
     # -- argument readers ---------------------------------------------------------------------------------
 
     def body(self, tree, scope, decl) -> str:
-        if isinstance(tree, Tree) and tree.data == "name_ref" and len(tree.children) == 1:
-            return self.scene.resolve_body_name(ref_text(tree.children[0], scope, decl.lowerer), tree, scope,
-                                                decl.lowerer)
+        if isinstance(tree, Tree) and tree.data == "name_ref":
+            return self.scene.resolve_body_name(ref_name(tree, scope, decl.lowerer), tree, scope, decl.lowerer)
         raise decl.lowerer.fail("expected a body name", tree)
 
     def anchor(self, tree, scope, decl, what="a body point `body @ (x, y, z)`"):
@@ -161,7 +160,7 @@ class ConstraintLowerer:
                 x0, R0 = self.pose(body)
                 point = R0.T @ (point - x0)
             return body, tuple(float(v) for v in point)
-        if isinstance(tree, Tree) and tree.data == "name_ref" and len(tree.children) == 1:
+        if isinstance(tree, Tree) and tree.data == "name_ref":
             return self.body(tree, scope, decl), (0.0, 0.0, 0.0)
         raise decl.lowerer.fail(f"expected {what}", tree)
 
@@ -183,11 +182,12 @@ class ConstraintLowerer:
             parts = [ref_text(tree.children[0], scope, decl.lowerer)] + [str(t) for t in tree.children[1:]]
             if len(parts) == 1 and parts[0] in AXES and scope.lookup("values", parts[0]) is None:
                 return None, tuple(sign * v for v in AXES[parts[0]])
-            if len(parts) == 2:
-                if parts[1] not in AXES:
-                    raise decl.lowerer.fail(f"`{parts[1]}` is not an axis", tree, "body axes are x, y and z")
-                body = self.scene.resolve_body_name(parts[0], tree, scope, decl.lowerer)
-                return body, tuple(sign * v for v in AXES[parts[1]])
+            if len(parts) >= 2:
+                # `wheel.x`, or a part instance's body `left.wheel.x`
+                if parts[-1] not in AXES:
+                    raise decl.lowerer.fail(f"`{parts[-1]}` is not an axis", tree, "body axes are x, y and z")
+                body = self.scene.resolve_body_name(".".join(parts[:-1]), tree, scope, decl.lowerer)
+                return body, tuple(sign * v for v in AXES[parts[-1]])
         vec = np.array(self.vector(tree, scope, decl, U.DIMENSIONLESS, "a direction")) * sign
         norm = np.linalg.norm(vec)
         if norm == 0:
@@ -277,7 +277,8 @@ class ConstraintLowerer:
                       ("gear",))]
 
     def _gear_axis(self, tree, scope, decl):
-        if isinstance(tree, Tree) and tree.data == "name_ref" and len(tree.children) == 2:
+        if isinstance(tree, Tree) and tree.data == "name_ref" and len(tree.children) >= 2 \
+                and str(tree.children[-1]) in AXES:
             return self.direction(tree, scope, decl)
         return self.body(tree, scope, decl), (0.0, 0.0, 1.0)
 

@@ -132,7 +132,14 @@ class ExprLowerer:
         method = getattr(self, "_" + tree.data, None)
         if method is None:
             raise self.fail(self._misplaced(tree.data), tree)
-        return method(tree, scope, ctx)
+        try:
+            value = method(tree, scope, ctx)
+        except (ArithmeticError, ValueError) as error:  # folding constants: 1/0, 10^1000, sqrt of a vector...
+            raise self.fail(f"this value cannot be computed ({error})", tree) from None
+        if type(value.node) is E.Const and not _finite(value.node.value):
+            raise self.fail("this value is not a finite number", tree, "check for a division by zero, log(0) "
+                            "or a number too large")
+        return value
 
     def _misplaced(self, data: str) -> str:
         if data in ("anchor", "world_anchor"):
@@ -267,9 +274,21 @@ class ExprLowerer:
         if len(arg_trees) != E.ARITY[fn]:
             raise self.fail(f"`{fn}` takes {E.ARITY[fn]} argument(s), got {len(arg_trees)}", tree)
         args = [self.lower(a, scope, ctx) for a in arg_trees]
+        self._check_sizes(fn, args, tree)
         nodes = tuple(self._angle_arg(fn, i, a) for i, a in enumerate(args))
         dim = self._call_dim(fn, args, tree)
         return Typed(E.fold(E.Call(fn, nodes)), dim, self.pos(tree))
+
+    def _check_sizes(self, fn: str, args: list, tree) -> None:
+        """Vector functions want vectors of the right size; element-wise ones, arguments of one size."""
+        sizes = [a.size for a in args]
+        wanted = VECTOR_ARGUMENTS.get(fn)
+        if wanted is not None:
+            if any((s == 0) if w is None else (s != w) for s, w in zip(sizes, wanted)) or (fn == "dot" and sizes[0] != sizes[1]):
+                usage = ", ".join("a number" if w == 0 else f"a {w}-vector" if w else "a vector" for w in wanted)
+                raise self.fail(f"`{fn}` takes ({usage})", tree)
+        elif len({s for s in sizes if s}) > 1:
+            raise self.fail(f"`{fn}`: the vector arguments differ in size", tree)
 
     def _angle_arg(self, fn: str, index: int, arg: Typed) -> E.Expr:
         # euler(...) and axis_angle(axis, angle) take degrees when no unit is written (LANGUAGE.md)
@@ -304,11 +323,11 @@ class ExprLowerer:
         for a in arg_trees:
             if isinstance(a, Tree) and a.data == "kwarg":
                 kwargs.append((str(a.children[0]), self.lower(a.children[1], scope, ctx).node))
-            elif isinstance(a, Tree) and a.data == "name_ref" and ctx.audio and len(a.children) == 1 \
-                    and scope.lookup("values", str(a.children[0])) is None \
-                    and str(a.children[0]) not in AUDIO_SIGNALS | {"t"} | set(E.CONSTANTS):
-                # a body, material or wind named as an audio-node argument: modal(bar)
-                args.append(E.Str(str(a.children[0])))
+            elif isinstance(a, Tree) and a.data == "name_ref" and ctx.audio and (len(a.children) > 1 or (
+                    scope.lookup("values", str(a.children[0])) is None
+                    and str(a.children[0]) not in AUDIO_SIGNALS | {"t"} | set(E.CONSTANTS))):
+                # a body, material or wind named as an audio-node argument: modal(bar), modal(left.bob)
+                args.append(E.Str(ref_name(a, scope, self)))
             else:
                 args.append(self.lower(a, scope, ctx).node)
         return Typed(E.Call(fn, tuple(args), tuple(sorted(kwargs))), None, self.pos(tree))
@@ -376,6 +395,17 @@ class ExprLowerer:
         return node_si.value
 
 
+# argument sizes of the vector functions: 0 a number, k a k-vector, None any vector (size >= 1)
+VECTOR_ARGUMENTS = {"length": (None,), "normalize": (None,), "dot": (None, None), "cross": (3, 3),
+                    "euler": (0, 0, 0), "axis_angle": (3, 0), "quat": (0, 0, 0, 0)}
+
+
+def _finite(value) -> bool:
+    if type(value) is float:
+        return math.isfinite(value)
+    return all(_finite(v) for v in value) if isinstance(value, tuple) else True
+
+
 def _example_number(value: Typed) -> str:
     if isinstance(value.node, E.Const) and not isinstance(value.node.value, tuple):
         return f"{value.node.value:g}"
@@ -394,3 +424,8 @@ def ref_text(token, scope: Scope, lowerer: ExprLowerer) -> str:
 
         return interpolate_name(str(token), token, scope, lowerer)
     return str(token)
+
+
+def ref_name(tree: Tree, scope: Scope, lowerer: ExprLowerer) -> str:
+    """The full name a `name_ref` stands for: `bob`, `link{i}` interpolated, or a part instance's `left.bob`."""
+    return ".".join([ref_text(tree.children[0], scope, lowerer)] + [str(t) for t in tree.children[1:]])

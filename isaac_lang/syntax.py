@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import functools
+import re
 from importlib import resources
 
 from lark import Lark, Token, Tree
@@ -54,9 +55,37 @@ def describe_syntax_error(error: UnexpectedInput, text: str, file: str):
         hint = _unclosed_brace(text) if "RBRACE" in (getattr(error, "expected", None) or ()) else None
         return f"unexpected end of file; expected {expected}", pos, hint
     token = error.token
+    misspelled = _misspelled_keyword(token, text)
+    if misspelled:
+        # `materal steel { ... }` parses as far as the `{`: the mistake is the first word, so point there
+        word, word_col, guess = misspelled
+        return f"`{word}` is not a keyword", SourcePos(file, token.line, word_col, len(word)), guess
     pos = SourcePos(file, line, col, max(1, len(str(token))))
     message = f"unexpected {_token_text(token)}; expected {_expected(error)}"
     return message, pos, _hint_for_token(token, text, error)
+
+
+def _misspelled_keyword(token: Token, text: str):
+    """(word, column, hint) when the line of a syntax error opens with a near miss of a keyword."""
+    lines = text.splitlines()
+    if not token.line or token.line > len(lines):
+        return None
+    match = re.match(r"\s*([A-Za-z_][A-Za-z0-9_]*)", lines[token.line - 1])
+    if not match or match.group(1) in KEYWORDS or match.group(1) in _property_names():
+        return None
+    guess = did_you_mean(match.group(1), KEYWORDS)
+    return (match.group(1), match.start(1) + 1, guess) if guess else None
+
+
+@functools.lru_cache(maxsize=1)
+def _property_names() -> frozenset:
+    """Every name a block or a scene setting knows (a line may open with one of them legitimately)."""
+    from . import lower, lower_constraints
+
+    tables = (lower.SETTINGS, lower.SOLVER_PROPS, lower.CAMERA_PROPS, lower.LIGHT_PROPS, lower.MATERIAL_PROPS,
+              lower.BODY_PROPS, lower.WIND_PROPS, lower.SOUND_PROPS, lower.LISTENER_PROPS, lower.AUDIO_PROPS,
+              lower_constraints.CONSTRAINT_PROPS, lower_constraints.FORCE_PROPS)
+    return frozenset(name for table in tables for name in table)
 
 
 def _expected(error) -> str:
@@ -104,13 +133,8 @@ def _hint_for_character(char: str) -> str | None:
 
 
 def _hint_for_token(token: Token, text: str, error) -> str | None:
-    """Common mistakes: a misspelled keyword at the start of the statement, a missing unit, a missing brace."""
-    line_text = text.splitlines()[token.line - 1] if token.line and token.line <= len(text.splitlines()) else ""
-    first_word = line_text.strip().split(" ")[0].split("{")[0] if line_text.strip() else ""
-    if first_word and first_word not in KEYWORDS:
-        guess = did_you_mean(first_word, KEYWORDS)
-        if guess:
-            return f"`{first_word}` is not a keyword; {guess}"
+    """Common mistakes: a keyword where a `}` was due, a body point outside a call (misspelled keywords:
+    `_misspelled_keyword`)."""
     if token.type == "NAME" and str(token) in KEYWORDS:
         return "a `}` may be missing before this declaration"
     if token.type == "AT":

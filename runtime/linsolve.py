@@ -29,7 +29,9 @@ L is unit lower triangular with one off-diagonal block L_pn per node n (p its pa
 A body pivot is M_i plus a positive semi-definite term; a group pivot is -J_g (child compliance) J_g^T, negative
 definite when the group's rows are independent on its child bodies. Solve: forward z_n = b_n - sum L_nc z_c
 (children first), diagonal and backward x_n = D_n^-1 z_n - L_pn^T x_p (root first). Every node does a fixed
-number of (6x6, 6xk, kxk) products, so factor + solve cost O(nodes); the loops are Python, the blocks numpy.
+number of (6x6, 6xk, kxk) products, so factor + solve cost O(nodes) whatever the degrees; the loops are Python,
+the blocks numpy. Measured (benchmarks/bench_linsolve.py): t(1000 bodies)/t(100) = 10.5 on chains, but SuperLU
+is ~5x faster on chains and bounded-degree trees; the tree wins where a body carries many rows (choose_solver).
 
 A leaf group (pinned to the world or a static body) would have D = 0, so each component is rooted at its one
 grounded group. The world is therefore a node of the graph: a component grounded twice (a chain pinned at both
@@ -54,8 +56,12 @@ RESIDUAL_RTOL = 1e-8
 SPARSE_REG_RTOL = 1e-11
 # Iterative refinement steps against the unshifted A after the shifted solve (iterated Tikhonov).
 SPARSE_REFINE_STEPS = 4
-# Crossover measured by benchmarks/bench_linsolve.py, see choose_solver.
-DENSE_MAX_ROWS = 60
+# Up to this many rows dense wins (bench_linsolve.py, ball-jointed chains: dense/sparse 0.23/0.25 ms at 108 rows,
+# 0.24/0.23 ms at 114, 0.39/0.26 ms at 144; 343 ms vs 3.4 ms at 3000 rows).
+DENSE_MAX_ROWS = 110
+# From this many rows on one body the tree beats sparse: J M^-1 J^T holds a dense block of that size (stars:
+# sparse/tree 0.33/0.37 ms at 60 rows, 0.44/0.43 at 72, 1.07/0.66 at 120; 2400 ms vs 17 ms at 3000 rows).
+TREE_HUB_ROWS = 72
 
 
 @dataclass
@@ -71,6 +77,14 @@ class SolveInfo:
     rank: int | None = None
     regularization: float = 0.0
     note: str = ""
+
+
+def _dynamic_slots(rb: np.ndarray, dynamic_mask) -> np.ndarray:
+    """(m,2) bool: the slot names a dynamic body (not the world, not a static or kinematic body)."""
+    dmask = np.asarray(dynamic_mask, dtype=bool)
+    if len(dmask) == 0:
+        return np.zeros(rb.shape, dtype=bool)
+    return (rb >= 0) & dmask[np.clip(rb, 0, len(dmask) - 1)]
 
 
 def _relative_residual(r: np.ndarray, rhs: np.ndarray) -> float:
@@ -197,8 +211,7 @@ class SparsePattern:
     def build(cls, row_bodies, n_bodies, dynamic_mask) -> "SparsePattern":
         rb = np.asarray(row_bodies, dtype=np.int64).reshape(-1, 2)
         m = len(rb)
-        dyn = (rb >= 0) & np.asarray(dynamic_mask, bool)[np.clip(rb, 0, max(n_bodies - 1, 0))]
-        rows, slots = np.nonzero(dyn)
+        rows, slots = np.nonzero(_dynamic_slots(rb, dynamic_mask))
         body = rb[rows, slots]
         order = np.argsort(body, kind="stable")
         rows, slots, body = rows[order], slots[order], body[order]
@@ -307,7 +320,7 @@ class TreeSolver:
     def build(cls, row_bodies, row_group, n_bodies, dynamic_mask) -> "TreeSolver | None":
         rb = np.asarray(row_bodies, dtype=np.int64).reshape(-1, 2)
         dmask = np.asarray(dynamic_mask, dtype=bool)
-        dyn = (rb >= 0) & dmask[np.clip(rb, 0, max(n_bodies - 1, 0))]
+        dyn = _dynamic_slots(rb, dmask)
         _, gidx = np.unique(np.asarray(row_group).reshape(-1), return_inverse=True)
         ng = int(gidx.max()) + 1 if len(gidx) else 0
         # a row with fewer than two distinct dynamic bodies acts against the world: its group is grounded
@@ -338,7 +351,8 @@ class TreeSolver:
         self.edge_J = np.zeros((len(edge_group), kmax, 6))  # (E,kmax,6) J_gb, rows of g in local order
         self.rs = (rows, slots, rs_edge, local[rows])
         self.Pb = np.zeros((nb, 6, 6))  # body pivots D_n
-        self.Pg = np.zeros((ng, kmax, kmax))  # group pivots D_n
+        self.Pg = np.zeros((ng, kmax, kmax))  # group pivots D_n, padded to kmax
+        self.Pg_pad = np.arange(kmax)[None, :] >= k[:, None]  # (ng,kmax) padding rows/cols
         size = np.full(len(graph.kind), 6, dtype=np.int64)  # unknowns per node: 6 per body, k per group
         size[graph.kind == 1] = k[graph.index[graph.kind == 1]]
         offset = np.r_[0, np.cumsum(size)]
@@ -429,15 +443,16 @@ class TreeSolver:
         return -self.x[self.row_flat]
 
     def _bad_pivot(self):
-        # every group pivot -D_g must be positive definite: eigenvalues of all blocks at once (padding = I)
+        # every group pivot -D_g must be positive definite: eigenvalues of all blocks at once
         if not len(self.Pg):
             return ""
         kmax = self.Pg.shape[1]
         S = -self.Pg
-        pad = np.all(S == 0.0, axis=2) & np.all(S == 0.0, axis=1)
-        S[:, np.arange(kmax), np.arange(kmax)] += pad  # unused (padding) rows/cols become identity
         if not np.all(np.isfinite(S)):
             return "non-finite pivot"
+        # padding rows/cols become (largest diagonal of the block) * I: no effect on its conditioning
+        dmax = np.max(np.abs(np.diagonal(S, axis1=1, axis2=2)), axis=1)
+        S[:, np.arange(kmax), np.arange(kmax)] += self.Pg_pad * np.where(dmax > 0, dmax, 1.0)[:, None]
         w = np.linalg.eigvalsh(S)
         if np.any(w[:, 0] <= RANK_RTOL * np.abs(w[:, -1])):
             return "singular group pivot"
@@ -517,9 +532,27 @@ class _Forest:
         # the flat layout of the unknowns follows the elimination order
 
 
-def choose_solver(m_rows: int, tree_available: bool) -> str:
-    """Pick the solver for m_rows active rows. Rule measured on ball-jointed chains (bench_linsolve.py):
-    dense below DENSE_MAX_ROWS rows, else sparse; see the numbers in the comment of DENSE_MAX_ROWS."""
+def max_rows_per_body(row_bodies, dynamic_mask) -> int:
+    """The largest number of rows touching one dynamic body: the size of the densest block of J M^-1 J^T."""
+    rb = np.asarray(row_bodies, dtype=np.int64).reshape(-1, 2)
+    dyn = _dynamic_slots(rb, dynamic_mask)
+    # count a row once even if both slots name the same body
+    dyn[:, 1] &= rb[:, 1] != rb[:, 0]
+    return int(np.max(np.bincount(rb[dyn], minlength=1)))
+
+
+def choose_solver(m_rows: int, tree_available: bool, hub_rows: int = 0) -> str:
+    """Pick the solver for m_rows active rows, measured with benchmarks/bench_linsolve.py (numbers above
+    DENSE_MAX_ROWS and TREE_HUB_ROWS):
+
+    * m_rows <= DENSE_MAX_ROWS: "dense" (one BLAS call beats any per-row bookkeeping);
+    * tree available and hub_rows (max_rows_per_body) >= TREE_HUB_ROWS: "tree" (its cost is linear whatever
+      the degree, while SuperLU meets a dense hub_rows x hub_rows block);
+    * otherwise "sparse": on chains and bounded-degree trees SuperLU (compiled) beats the Python-looped
+      linear-time tree about 5x at every size measured (3000 rows: 3.4 ms vs 17 ms), both scaling linearly.
+    """
     if m_rows <= DENSE_MAX_ROWS:
         return "dense"
+    if tree_available and hub_rows >= TREE_HUB_ROWS:
+        return "tree"
     return "sparse"

@@ -40,19 +40,29 @@ class ProceduralPlan:
     colours: list
     inv_mass: np.ndarray
     inv_inertia_body: np.ndarray
-    inertia_body: np.ndarray
-    moving: np.ndarray
+    moving: slice | np.ndarray
+    moving_inv_mass: np.ndarray
+    moving_inertia_body: np.ndarray
+    moving_inv_inertia_body: np.ndarray
     substeps: int
     iterations: int
 
 
 @dataclass
 class ProceduralScratch:
-    """Preallocated working memory: x_prev (n,3), q_prev (n,4) at the start of the substep; lam[f] per family."""
+    """Preallocated working memory: before, the Frame of the start of the substep (x_prev, q_prev are views of
+    its first n rows); lam[f] the XPBD multipliers of family f."""
 
-    x_prev: np.ndarray
-    q_prev: np.ndarray
+    before: pj.Frame
     lam: list = field(default_factory=list)
+
+    @property
+    def x_prev(self) -> np.ndarray:
+        return self.before.x[:-1]
+
+    @property
+    def q_prev(self) -> np.ndarray:
+        return self.before.q[:-1]
 
 
 class ProceduralSolver:
@@ -73,6 +83,7 @@ class ProceduralSolver:
             np.broadcast_to(np.asarray(c, dtype=float), (kf,)).copy() for c, kf in zip(compliance, k)]
         keep = [None] * len(families) if keep is None else list(keep)
         dynamic = inv_mass > 0.0
+        moving = slice(None) if dynamic.all() else np.flatnonzero(dynamic)
         self.plan = ProceduralPlan(
             families=families,
             compliance=compliance,
@@ -80,18 +91,19 @@ class ProceduralSolver:
             colours=[pj.colour_instances(*pj.instance_bodies(f), dynamic=dynamic) for f in families],
             inv_mass=inv_mass,
             inv_inertia_body=inv_inertia_body,
-            inertia_body=np.where(dynamic[:, None, None], np.linalg.pinv(inv_inertia_body), 0.0),
-            moving=np.flatnonzero(dynamic),
+            moving=moving,
+            moving_inv_mass=inv_mass[moving].copy(),
+            moving_inertia_body=np.linalg.pinv(inv_inertia_body[moving]),
+            moving_inv_inertia_body=inv_inertia_body[moving].copy(),
             substeps=int(substeps),
             iterations=int(iterations),
         )
-        self.scratch = ProceduralScratch(
-            x_prev=np.zeros((n, 3)), q_prev=np.zeros((n, 4)), lam=[np.zeros(pj.lam_shape(f)) for f in families])
+        self.scratch = ProceduralScratch(pj.Frame.empty(n), [np.zeros(pj.lam_shape(f)) for f in families])
         # keyword arguments per family, bound once to the scratch buffers
         self._extra = [self._extra_arguments(f, kp) for f, kp in zip(families, keep)]
 
     def _extra_arguments(self, fam, keep) -> dict:
-        extra = {"x_prev": self.scratch.x_prev, "q_prev": self.scratch.q_prev}
+        extra = {"before": self.scratch.before}
         if isinstance(fam, (PointToPoint, PointToNail)) and keep is not None:
             extra["keep"] = np.asarray(keep, dtype=bool).reshape(-1, 3)
         return extra
@@ -120,15 +132,15 @@ class ProceduralSolver:
         """Stage 1: the unconstrained move of the moving bodies; saves x_prev, q_prev."""
         p, m = self.plan, self.plan.moving
         # v += hs F / m
-        v[m] += (hs * p.inv_mass[m])[:, None] * force[m]
-        # w += hs I^-1 (tau - w x I w), world I = R I_b R^T
+        v[m] += hs * p.moving_inv_mass[:, None] * force[m]
+        # w += hs I^-1 (tau - w x I w), I = R I_b R^T, done in the body frame: w_b = R^T w,
+        # dw = hs R I_b^-1 (R^T tau - w_b x I_b w_b)
         R = pj.rotation_matrix(q[m])
-        Rt = np.swapaxes(R, 1, 2)
-        wm = w[m]
-        Iw = np.einsum("kij,kj->ki", R @ p.inertia_body[m] @ Rt, wm)
-        w[m] = wm + hs * np.einsum("kij,kj->ki", R @ p.inv_inertia_body[m] @ Rt, torque[m] - np.cross(wm, Iw))
-        np.copyto(self.scratch.x_prev, x)
-        np.copyto(self.scratch.q_prev, q)
+        Rt = R.transpose(0, 2, 1)
+        wb = pj.matvec(Rt, w[m])
+        tau_b = pj.matvec(Rt, torque[m]) - pj.cross(wb, pj.matvec(p.moving_inertia_body, wb))
+        w[m] += hs * pj.matvec(R, pj.matvec(p.moving_inv_inertia_body, tau_b))
+        self.scratch.before.refresh(x, q, m, p.moving_inv_inertia_body)
         x[m] += hs * v[m]
         q[m] = quat_integrate(q[m], w[m], hs)
 
@@ -144,9 +156,8 @@ class ProceduralSolver:
         """Stage 3: v = (x - x_prev) / hs, w = 2 vec(q q_prev^-1) / hs with the scalar part made >= 0."""
         m, s = self.plan.moving, self.scratch
         v[m] = (x[m] - s.x_prev[m]) / hs
-        dq = quat_multiply(q[m], quat_conjugate(s.q_prev[m]))
-        sign = np.where(dq[:, 0] < 0.0, -2.0, 2.0)
-        w[m] = (sign / hs)[:, None] * dq[:, 1:]
+        _, turn = pj.turn_since(q[m], s.q_prev[m])
+        w[m] = (2.0 / hs) * turn
 
 
 # ---------------------------------------------------------------- the slow, obvious reference

@@ -39,7 +39,7 @@ PARALLEL_EPS = 1e-12
 MIN_DIRECTION_ALIGNMENT = 0.5
 
 # ---------------------------------------------------------------- small fast kernels on (k,3) stacks
-# (numpy's cross and moveaxis cost ~15 us per call at k ~ 10; these are a few us)
+# (numpy's cross, moveaxis and 2-D fancy indexing cost 2-15 us per call at k ~ 10; these cost 1-3 us)
 
 _EYE = np.eye(3)
 _IDENTITY_Q = np.array([1.0, 0.0, 0.0, 0.0])
@@ -50,7 +50,7 @@ _P1, _P2 = np.array([1, 2, 0]), np.array([2, 0, 1])
 
 
 def skew(v):
-    """[v]x (k,3,3)."""
+    """[v]x (k,3,3) with [v]x u = v x u."""
     return (v @ _SKEW).reshape(-1, 3, 3)
 
 
@@ -92,101 +92,165 @@ def turn_since(q, q_prev):
     return dq[:, 0], dq[:, 1:]
 
 
-# ---------------------------------------------------------------- body slots: gather, apply, solve
+def _rows(a, idx):
+    return a.take(idx, axis=0)
+
+
+def _both(a, b):
+    return np.concatenate((a, b))
+
+
+# ---------------------------------------------------------------- the start of the substep, body pairs
 
 
 @dataclass
-class Slot:
-    """One body slot of k instances, gathered from the state (WORLD: identity pose, no mobility).
+class Frame:
+    """Every body's pose at the start of the substep, built once per substep, plus one last row for the world
+    (identity pose, no mobility), so that WORLD = -1 indexes it.
 
-    index (k,) body index (WORLD kept); moves (k,) bool; x (k,3); q (k,4); R (k,3,3);
-    inv_m (k,) inverse mass and inv_I (k,3,3) world inverse inertia R I_b^-1 R^T (zero unless moves;
-    None for a pose-only slot).
+    x (n+1,3); q (n+1,4); R (n+1,3,3); inv_I (n+1,3,3) world inverse inertia R I_b^-1 R^T, zero for bodies that
+    do not move (inverse mass 0).
     """
 
-    index: np.ndarray
-    moves: np.ndarray | None
     x: np.ndarray
     q: np.ndarray
     R: np.ndarray
+    inv_I: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> "Frame":
+        q = np.zeros((n + 1, 4))
+        q[:, 0] = 1.0
+        return cls(np.zeros((n + 1, 3)), q, np.tile(_EYE, (n + 1, 1, 1)), np.zeros((n + 1, 3, 3)))
+
+    @classmethod
+    def of(cls, x, q, inv_mass, inv_inertia_body) -> "Frame":
+        """The frame of pose (x, q) for bodies with inverse masses inv_mass (n,), inverse inertias (n,3,3)."""
+        frame = cls.empty(len(x))
+        moving = np.flatnonzero(np.asarray(inv_mass) > 0.0)
+        frame.refresh(x, q, moving, np.asarray(inv_inertia_body)[moving])
+        return frame
+
+    def refresh(self, x, q, moving, moving_inv_inertia_body) -> None:
+        """Copy the pose (n rows), recompute every R and the I^-1 of the bodies `moving` (a slice or indices,
+        with their body inverse inertias (m,3,3)); the others' I^-1 stays 0."""
+        n = len(x)
+        self.x[:n], self.q[:n] = x, q
+        R = rotation_matrix(q)
+        self.R[:n] = R
+        Rm = R[moving]
+        self.inv_I[:n][moving] = Rm @ moving_inv_inertia_body @ Rm.transpose(0, 2, 1)
+
+    def pair(self, index, k) -> "Pair":
+        return Pair(k, index, _rows(self.x, index), _rows(self.q, index), _rows(self.R, index))
+
+
+@dataclass
+class Pair:
+    """The two body slots of k instances, stacked: rows [0, k) are slot a, rows [k, 2k) slot b, so one numpy
+    call serves both. WORLD rows have identity pose and no mobility.
+
+    index (2k,) body index (WORLD kept); x (2k,3); q (2k,4); R (2k,3,3); moves (2k,) bool; inv_m (2k,) inverse
+    mass, zero unless the body moves; inv_I (2k,3,3) the world inverse inertia corrections use (the start-of-
+    substep one when a Frame is given), zero unless the body moves. A pose-only pair has None there.
+    """
+
+    k: int
+    index: np.ndarray
+    x: np.ndarray
+    q: np.ndarray
+    R: np.ndarray
+    moves: np.ndarray | None = None
     inv_m: np.ndarray | None = None
     inv_I: np.ndarray | None = None
 
 
-def gather(body, x, q, inv_mass=None, inv_inertia_body=None) -> Slot:
-    """Slot of bodies `body` (k,), which may hold WORLD; pose only when inv_mass is None."""
-    real = body != WORLD
-    if real.all():
-        safe, xs, qs = body, x[body], q[body]
-    else:
-        safe = np.where(real, body, 0)
-        xs = np.where(real[:, None], x[safe], 0.0)
-        qs = np.where(real[:, None], q[safe], _IDENTITY_Q)
-    R = rotation_matrix(qs)
-    if inv_mass is None:
-        return Slot(body, None, xs, qs, R)
-    inv_m = np.where(real, inv_mass[safe], 0.0)
+def gather(body_a, body_b, x, q, inv_mass, inv_inertia_body, before: Frame | None = None) -> Pair:
+    """Pair of slots body_a, body_b (k,) each (WORLD allowed) from the current state."""
+    index = _both(body_a, body_b)
+    real = index != WORLD
+    everywhere = real.all()
+    safe = index if everywhere else np.where(real, index, 0)
+    xs, qs, inv_m = _rows(x, safe), _rows(q, safe), inv_mass.take(safe)
+    if not everywhere:
+        xs = np.where(real[:, None], xs, 0.0)
+        qs = np.where(real[:, None], qs, _IDENTITY_Q)
+        inv_m = np.where(real, inv_m, 0.0)
     moves = inv_m > 0.0
-    inv_I = R @ inv_inertia_body[safe] @ np.swapaxes(R, 1, 2)
     if not moves.all():
         inv_m = np.where(moves, inv_m, 0.0)
-        inv_I = np.where(moves[:, None, None], inv_I, 0.0)
-    return Slot(body, moves, xs, qs, R, inv_m, inv_I)
+    R = rotation_matrix(qs)
+    if before is not None:
+        inv_I = _rows(before.inv_I, index)
+    else:
+        inv_I = R @ _rows(inv_inertia_body, safe) @ R.transpose(0, 2, 1)
+        if not moves.all():
+            inv_I = np.where(moves[:, None, None], inv_I, 0.0)
+    return Pair(len(body_a), index, xs, qs, R, moves, inv_m, inv_I)
 
 
-def apply(slot: Slot, dx, dphi, x, q) -> None:
-    """x += dx, q += 0.5 (0, dphi) q (renormalized), for the moving bodies of the slot."""
-    qs = slot.q
+def apply(pair: Pair, dx, dphi, x, q) -> None:
+    """x += dx, q += 0.5 (0, dphi) q (then renormalized), for the moving bodies of the pair (2k rows each)."""
+    qs = pair.q
     dq = np.empty_like(qs)
     dq[:, 0] = -0.5 * dot(dphi, qs[:, 1:])
     dq[:, 1:] = 0.5 * (qs[:, :1] * dphi + cross(dphi, qs[:, 1:]))
     qs = qs + dq
-    qs /= np.sqrt((qs * qs).sum(axis=1))[:, None]
-    m = slot.moves
+    qs /= np.sqrt(dot(qs, qs))[:, None]
+    xs = pair.x + dx
+    m = pair.moves
     if m.all():
-        x[slot.index] = slot.x + dx
-        q[slot.index] = qs
+        x[pair.index], q[pair.index] = xs, qs
     else:
-        x[slot.index[m]] = (slot.x + dx)[m]
-        q[slot.index[m]] = qs[m]
+        x[pair.index[m]], q[pair.index[m]] = xs[m], qs[m]
 
 
-def solve_rows(a: Slot, b: Slot, grad, direction, C, alpha_t, lam, x, q) -> None:
-    """One XPBD update of k scalar rows (module docstring). grad = direction = (la, ga, lb, gb), (k,3) each;
-    direction None: along grad. lam (k,) is updated in place."""
-    la, ga, lb, gb = grad
-    Ia, Ib = matvec(a.inv_I, ga), matvec(b.inv_I, gb)
+def solve_rows(pair: Pair, l, g, C, alpha_t, lam, x, q, dl=None, dg=None) -> None:
+    """One XPBD update of k scalar rows (module docstring): gradients l, g (2k,3), stacked a over b; the
+    correction goes along (dl, dg), the gradients at the start of the substep, where given and aligned
+    with the current ones. lam (k,) is updated in place."""
+    k = pair.k
+    Ig = matvec(pair.inv_I, g)
     # w = sum_s l_s . l_s / m_s + g_s^T I_s^-1 g_s: the generalized inverse mass of the row
-    w = a.inv_m * dot(la, la) + dot(ga, Ia) + b.inv_m * dot(lb, lb) + dot(gb, Ib)
-    if direction is not None:
-        da, dga, db, dgb = direction
-        Ida, Idb = matvec(a.inv_I, dga), matvec(b.inv_I, dgb)
-        wd = a.inv_m * dot(la, da) + dot(ga, Ida) + b.inv_m * dot(lb, db) + dot(gb, Idb)
-        ok = (wd > MIN_DIRECTION_ALIGNMENT * w)[:, None]
-        w = np.where(ok[:, 0], wd, w)
-        la, Ia, lb, Ib = np.where(ok, da, la), np.where(ok, Ida, Ia), np.where(ok, db, lb), np.where(ok, Idb, Ib)
+    ws = pair.inv_m * dot(l, l) + dot(g, Ig)
+    w = ws[:k] + ws[k:]
+    if dl is not None:
+        Idg = matvec(pair.inv_I, dg)
+        ws = pair.inv_m * dot(l, dl) + dot(g, Idg)
+        wd = ws[:k] + ws[k:]
+        ok = wd > MIN_DIRECTION_ALIGNMENT * w
+        if ok.all():
+            l, Ig, w = dl, Idg, wd
+        else:
+            ok2 = _both(ok, ok)[:, None]
+            l, Ig, w = np.where(ok2, dl, l), np.where(ok2, Idg, Ig), np.where(ok, wd, w)
     denom = w + alpha_t
     # dlam = (-C - alpha~ lam) / (w + alpha~); rows no body can satisfy (w = 0, rigid) are left alone
     dlam = np.divide(-C - alpha_t * lam, denom, out=np.zeros_like(C), where=denom > 0.0)
     lam += dlam
-    apply(a, (dlam * a.inv_m)[:, None] * la, dlam[:, None] * Ia, x, q)
-    apply(b, (dlam * b.inv_m)[:, None] * lb, dlam[:, None] * Ib, x, q)
+    dlam = _both(dlam, dlam)
+    # dx_s = dlam l_s / m_s, dphi_s = dlam I_s^-1 g_s
+    apply(pair, (dlam * pair.inv_m)[:, None] * l, dlam[:, None] * Ig, x, q)
 
 
-def solve_point(a: Slot, b: Slot, ra, rb, da, db, C, alpha_t, lam, keep, x, q) -> None:
-    """XPBD block update of a 3-row point constraint C = P_a - P_b (k,3): arms ra, rb now, da, db at the start
-    of the substep (the impulse's lever arms; ra, rb for none).
+def solve_point(pair: Pair, r, C, alpha_t, lam, keep, x, q, d=None) -> None:
+    """XPBD block update of a 3-row point constraint C = P_a - P_b (k,3), arms r (2k,3) stacked a over b;
+    d (2k,3): the arms at the start of the substep, where the impulse acts (default r).
 
-    An impulse p (+p on a, -p on b) applied at arms d moves C by K p, K = sum_s (I3 / m_s - [r_s]x I_s^-1 [d_s]x)
+    An impulse p (+p on a, -p on b) at arms d moves C by K p, K = sum_s I3 / m_s - [r_s]x I_s^-1 [d_s]x
     (with d = r, the 3-D generalized inverse mass: n^T K n = sum_s 1/m_s + (r_s x n)^T I_s^-1 (r_s x n)).
     Solve (K + alpha~ I) dlam = -C - alpha~ lam on the kept rows only (keep (k,3)), so a subtracted row stays free.
     """
-    # use the start-of-substep arm only while it is within ~60 degrees of the current one
-    da = np.where((dot(da, ra) >= MIN_DIRECTION_ALIGNMENT * dot(ra, ra))[:, None], da, ra)
-    db = np.where((dot(db, rb) >= MIN_DIRECTION_ALIGNMENT * dot(rb, rb))[:, None], db, rb)
-    Da, Db = skew(da), skew(db)
-    K = (a.inv_m + b.inv_m)[:, None, None] * _EYE - skew(ra) @ a.inv_I @ Da - skew(rb) @ b.inv_I @ Db
-    active = keep & (np.einsum("kii->ki", K) > 0.0)  # rows neither body can move are left alone
+    k = pair.k
+    if d is None:
+        d = r
+    else:
+        ok = dot(d, r) >= MIN_DIRECTION_ALIGNMENT * dot(r, r)  # within ~60 degrees of the current arm
+        if not ok.all():
+            d = np.where(ok[:, None], d, r)
+    M = skew(r) @ pair.inv_I @ skew(d)
+    K = (pair.inv_m[:k] + pair.inv_m[k:])[:, None, None] * _EYE - M[:k] - M[k:]
+    active = keep & (K.diagonal(axis1=1, axis2=2) > 0.0)  # rows neither body can move are left alone
     if active.all():
         K = K + alpha_t[:, None, None] * _EYE
         rhs = -C - alpha_t[:, None] * lam
@@ -196,173 +260,166 @@ def solve_point(a: Slot, b: Slot, ra, rb, da, db, C, alpha_t, lam, keep, x, q) -
         rhs = np.where(active, -C - alpha_t[:, None] * lam, 0.0)
     dlam = np.linalg.solve(K, rhs[:, :, None])[:, :, 0]
     lam += dlam
-    # dphi_s = I_s^-1 (d_s x p) = -I_s^-1 [p]x d_s
-    apply(a, a.inv_m[:, None] * dlam, -matvec(a.inv_I, matvec(skew(dlam), da)), x, q)
-    apply(b, -b.inv_m[:, None] * dlam, matvec(b.inv_I, matvec(skew(dlam), db)), x, q)
+    p = _both(dlam, -dlam)
+    # dx_s = p_s / m_s, dphi_s = I_s^-1 (d_s x p_s) = -I_s^-1 [p_s]x d_s
+    apply(pair, pair.inv_m[:, None] * p, -matvec(pair.inv_I, matvec(skew(p), d)), x, q)
 
 
 def _alpha(compliance, idx, h):
-    return np.asarray(compliance, dtype=float)[idx] / (h * h)
+    return np.asarray(compliance, dtype=float).take(idx) / (h * h)
 
 
 def _keep(keep, idx):
-    return np.ones((len(idx), 3), dtype=bool) if keep is None else np.asarray(keep, dtype=bool)[idx]
+    return np.ones((len(idx), 3), dtype=bool) if keep is None else _rows(np.asarray(keep, dtype=bool), idx)
 
 
-def _project_rows(rows, fam, idx, body_a, body_b, x, q, inv_mass, inv_inertia_body, compliance, h, lam,
-                  x_prev, q_prev):
-    """Shared driver of the 1-row families: rows(fam, idx, a, b) -> (C, (la, ga, lb, gb)) on a pose pair."""
-    a = gather(body_a, x, q, inv_mass, inv_inertia_body)
-    b = gather(body_b, x, q, inv_mass, inv_inertia_body)
-    C, grad = rows(fam, idx, a, b)
-    direction = None
-    if x_prev is not None:
-        direction = rows(fam, idx, gather(body_a, x_prev, q_prev), gather(body_b, x_prev, q_prev))[1]
-    lam_k = lam[idx]
-    solve_rows(a, b, grad, direction, C, _alpha(compliance, idx, h), lam_k, x, q)
+def _project_rows(rows, fam, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before):
+    """Shared driver of the 1-row position families: rows(fam, idx, pair) -> (C (k,), l (2k,3), g (2k,3))."""
+    body_a, body_b = (_rows(b, idx) for b in instance_bodies(fam))
+    pair = gather(body_a, body_b, x, q, inv_mass, inv_inertia_body, before)
+    C, l, g = rows(fam, idx, pair)
+    dl = dg = None
+    if before is not None:
+        _, dl, dg = rows(fam, idx, before.pair(pair.index, pair.k))
+    lam_k = lam.take(idx)
+    solve_rows(pair, l, g, C, _alpha(compliance, idx, h), lam_k, x, q, dl, dg)
     lam[idx] = lam_k
 
 
 # ---------------------------------------------------------------- the families
 
 
-def project_point_to_point(fam: PointToPoint, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                           x_prev=None, q_prev=None, keep=None):
-    """Ball joint, C = x_a + R_a p_a - x_b - R_b p_b (3 rows, lam (k,3)); keep (k,3) masks subtracted rows."""
-    body_a, body_b = fam.body_a[idx], fam.body_b[idx]
-    a = gather(body_a, x, q, inv_mass, inv_inertia_body)
-    b = gather(body_b, x, q, inv_mass, inv_inertia_body)
-    pa, pb = fam.point_a[idx], fam.point_b[idx]
-    ra, rb = matvec(a.R, pa), matvec(b.R, pb)
-    da, db = ra, rb
-    if q_prev is not None:
-        da, db = matvec(gather(body_a, x_prev, q_prev).R, pa), matvec(gather(body_b, x_prev, q_prev).R, pb)
-    lam_k = lam[idx]
-    solve_point(a, b, ra, rb, da, db, a.x + ra - b.x - rb, _alpha(compliance, idx, h), lam_k, _keep(keep, idx), x, q)
+def _project_point(fam, idx, points, target, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before, keep):
+    body_a, body_b = (_rows(b, idx) for b in instance_bodies(fam))
+    pair = gather(body_a, body_b, x, q, inv_mass, inv_inertia_body, before)
+    r = matvec(pair.R, points)
+    d = None if before is None else matvec(_rows(before.R, pair.index), points)
+    P = pair.x + r
+    lam_k = _rows(lam, idx)
+    solve_point(pair, r, P[: len(idx)] - P[len(idx):] - target, _alpha(compliance, idx, h), lam_k,
+                _keep(keep, idx), x, q, d)
     lam[idx] = lam_k
+
+
+def project_point_to_point(fam: PointToPoint, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
+                           before: Frame | None = None, keep=None):
+    """Ball joint, C = x_a + R_a p_a - x_b - R_b p_b (3 rows, lam (k,3)); keep (k,3) masks subtracted rows."""
+    idx = np.asarray(idx)
+    points = _both(_rows(fam.point_a, idx), _rows(fam.point_b, idx))
+    _project_point(fam, idx, points, 0.0, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before, keep)
 
 
 def project_point_to_nail(fam: PointToNail, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                          x_prev=None, q_prev=None, keep=None):
+                          before: Frame | None = None, keep=None):
     """Body point at the world point P (fam.target, refreshed by the caller when it moves): C = x + R p - P."""
-    body = fam.body[idx]
-    a = gather(body, x, q, inv_mass, inv_inertia_body)
-    b = gather(np.full(len(body), WORLD), x, q, inv_mass, inv_inertia_body)
-    ra = matvec(a.R, fam.point[idx])
-    da = ra if q_prev is None else matvec(gather(body, x_prev, q_prev).R, fam.point[idx])
-    zero = np.zeros_like(ra)
-    lam_k = lam[idx]
-    solve_point(a, b, ra, zero, da, zero, a.x + ra - fam.target[idx], _alpha(compliance, idx, h), lam_k,
-                _keep(keep, idx), x, q)
-    lam[idx] = lam_k
+    idx = np.asarray(idx)
+    p = _rows(fam.point, idx)
+    _project_point(fam, idx, _both(p, np.zeros_like(p)), _rows(fam.target, idx), x, q, inv_mass, inv_inertia_body,
+                   compliance, h, lam, before, keep)
 
 
-def _orientation_rows(fam, idx, a, b):
+def _orientation_rows(fam, idx, pair):
     # T . N = 0 as the angle from perpendicular, theta = asin(T . N), about n = unit(T x N): turning a by dphi
     # about n turns T toward N at unit rate, b the other way: g_a = n, g_b = -n.
-    T, N = matvec(a.R, fam.axis_a[idx]), matvec(b.R, fam.axis_b[idx])
+    k = pair.k
+    TN = matvec(pair.R, _both(_rows(fam.axis_a, idx), _rows(fam.axis_b, idx)))
+    T, N = TN[:k], TN[k:]
     n = cross(T, N)
     size = np.sqrt(dot(n, n))
     if not (size > PARALLEL_EPS).all():  # T parallel to N: turn T about T x (the world axis least along T)
-        fallback = cross(T, _EYE[np.argmin(np.abs(T), axis=1)])
-        n = np.where((size > PARALLEL_EPS)[:, None], n, fallback)
+        n = np.where((size > PARALLEL_EPS)[:, None], n, cross(T, _EYE[np.argmin(np.abs(T), axis=1)]))
         size = np.sqrt(dot(n, n))
     n = n / size[:, None]
-    zero = np.zeros_like(n)
-    return np.arcsin(np.clip(dot(T, N), -1.0, 1.0)), (zero, n, zero, -n)
+    return np.arcsin(np.clip(dot(T, N), -1.0, 1.0)), np.zeros_like(TN), _both(n, -n)
 
 
 def project_orientation(fam: Orientation, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                        x_prev=None, q_prev=None):
+                        before: Frame | None = None):
     """Body-fixed T of a kept perpendicular to N (world or fixed in b): C = T . N, solved as asin(T . N)."""
-    _project_rows(_orientation_rows, fam, idx, fam.body_a[idx], fam.body_b[idx], x, q, inv_mass, inv_inertia_body,
-                  compliance, h, lam, x_prev, q_prev)
+    _project_rows(_orientation_rows, fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam,
+                  before)
 
 
-def _plane_rows(fam, idx, a, b):
+def _plane_rows(fam, idx, pair):
     # C = N . (P - S): l_a = N, g_a = (P - x_a) x N; b opposite with arm P - x_b (the plane turning about x_b)
-    P = a.x + matvec(a.R, fam.point_a[idx])
-    S = b.x + matvec(b.R, fam.plane_point[idx])
-    N = matvec(b.R, fam.plane_normal[idx])
-    return dot(N, P - S), (N, cross(P - a.x, N), -N, -cross(P - b.x, N))
+    k = pair.k
+    PS = pair.x + matvec(pair.R, _both(_rows(fam.point_a, idx), _rows(fam.plane_point, idx)))
+    N = matvec(pair.R[k:], _rows(fam.plane_normal, idx))
+    NN = _both(N, -N)
+    return dot(N, PS[:k] - PS[k:]), NN, cross(_both(PS[:k], PS[:k]) - pair.x, NN)
 
 
 def project_point_on_plane(fam: PointOnPlane, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                           x_prev=None, q_prev=None):
+                           before: Frame | None = None):
     """Body point P of a on the plane through S with normal N (world or fixed in b): C = N . (P - S)."""
-    _project_rows(_plane_rows, fam, idx, fam.body_a[idx], fam.body_b[idx], x, q, inv_mass, inv_inertia_body,
-                  compliance, h, lam, x_prev, q_prev)
+    _project_rows(_plane_rows, fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam, before)
 
 
-def _element_translation_rows(fam, idx, a, b):
-    # C = e . (x_a - x_b) - offset, e = R_b axis: l_a = e, g_a = 0, l_b = -e, g_b = -((x_a - x_b) x e)
-    e = matvec(b.R, fam.axis[idx])
-    d = a.x - b.x
-    return dot(e, d) - fam.offset[idx], (e, np.zeros_like(e), -e, -cross(d, e))
+def _element_translation_rows(fam, idx, pair):
+    # C = e . (x_a - x_b) - offset, e = R_b axis: l_a = e, g_a = 0, l_b = -e, g_b = (x_a - x_b) x (-e)
+    k = pair.k
+    e = matvec(pair.R[k:], _rows(fam.axis, idx))
+    ee = _both(e, -e)
+    xa = pair.x[:k]
+    return dot(e, xa - pair.x[k:]) - fam.offset.take(idx), ee, cross(_both(xa, xa) - pair.x, ee)
 
 
-def _element_rotation_rows(fam, idx, a, b):
+def _element_rotation_rows(fam, idx, pair):
     # q_err = conj(q_b) q_a conj(ref) = (s, v), s >= 0; C = 2 v . axis (axis in b's frame). q_a += 0.5 (0, dphi) q_a
     # moves q_err by 0.5 (0, R_b^T dphi) q_err, so dC = dphi . R_b (s axis + v x axis) (exact): g_a = that, g_b = -g_a.
-    err = quat_mul(quat_mul(quat_conj(b.q), a.q), quat_conj(fam.reference_rotation[idx]))
+    k = pair.k
+    err = quat_mul(quat_mul(quat_conj(pair.q[k:]), pair.q[:k]), quat_conj(_rows(fam.reference_rotation, idx)))
     err *= np.where(err[:, :1] < 0.0, -1.0, 1.0)
-    s, v, axis = err[:, :1], err[:, 1:], fam.axis[idx]
-    g = matvec(b.R, s * axis + cross(v, axis))
-    zero = np.zeros_like(g)
-    return 2.0 * dot(v, axis), (zero, g, zero, -g)
+    s, v, axis = err[:, :1], err[:, 1:], _rows(fam.axis, idx)
+    g = matvec(pair.R[k:], s * axis + cross(v, axis))
+    return 2.0 * dot(v, axis), np.zeros((2 * k, 3)), _both(g, -g)
 
 
 def project_element(fam: Element, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                    x_prev=None, q_prev=None):
-    """Element rows: fix translation along / rotation about an axis (world or b's frame); translational and
-    rotational instances of idx are projected as two vectorized groups, translations first."""
+                    before: Frame | None = None):
+    """Element rows: fix translation along / rotation about an axis (world or b's frame); the translational and
+    the rotational instances of idx are projected as two vectorized groups."""
     idx = np.asarray(idx)
-    rot = fam.rotational[idx]
+    rot = fam.rotational.take(idx)
     for group, rows in ((idx[~rot], _element_translation_rows), (idx[rot], _element_rotation_rows)):
         if len(group):
-            _project_rows(rows, fam, group, fam.body_a[group], fam.body_b[group], x, q, inv_mass, inv_inertia_body,
-                          compliance, h, lam, x_prev, q_prev)
+            _project_rows(rows, fam, group, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before)
 
 
-def _gear_rows(fam, idx, a, b, q_prev):
-    # C = r_a dtheta_a + r_b dtheta_b, dtheta = 2 vec(dq) . A, dq = q q_prev^-1 = (s, v), A = R axis.
-    # q += 0.5 (0, dphi) q moves v by 0.5 (s dphi + dphi x v) and A by dphi x A: dC = dphi . r (s A + A x v).
-    sa, va = turn_since(a.q, _prev_orientation(a, q_prev))
-    sb, vb = turn_since(b.q, _prev_orientation(b, q_prev))
-    Aa, Ab = matvec(a.R, fam.axis_a[idx]), matvec(b.R, fam.axis_b[idx])
-    ra, rb = fam.radius_a[idx][:, None], fam.radius_b[idx][:, None]
-    C = 2.0 * dot(ra * va, Aa) + 2.0 * dot(rb * vb, Ab)
-    zero = np.zeros_like(Aa)
-    return C, (zero, ra * (sa[:, None] * Aa + cross(Aa, va)), zero, rb * (sb[:, None] * Ab + cross(Ab, vb)))
-
-
-def _prev_orientation(slot: Slot, q_prev):
-    """q_prev of the slot's bodies; the current q (no turn) for WORLD."""
-    real = slot.index != WORLD
-    return q_prev[slot.index] if real.all() else np.where(real[:, None], q_prev[np.where(real, slot.index, 0)], slot.q)
+def _require(before):
+    if before is None:
+        raise ValueError("before: gear families are on the turn made since the start of the substep; pass its Frame")
 
 
 def project_gear_to_gear(fam: GearToGear, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                         x_prev=None, q_prev):
-    """Gears, made positional per substep: r_a dtheta_a + r_b dtheta_b = 0 for the turn made since q_prev.
+                         before: Frame):
+    """Gears, made positional per substep: r_a dtheta_a + r_b dtheta_b = 0 for the turn made since the start of
+    the substep (before.q).
 
     dtheta = 2 vec(q q_prev^-1) . A (A the gear's world axis, scalar part of the turn made >= 0) is the very
     quantity the solver turns into angular velocity, w = 2 vec(q q_prev^-1) / h. So once the row holds,
-    r_a w_a . A_a + r_b w_b . A_b = 0 at the end of every substep to solver tolerance, exactly, rather than on
-    average; and no angle error is carried into the next substep (there is no C(x) to drift, so no stabilization):
-    the total turns, sums of per-substep turns that each keep the ratio, keep it too. The gradient is exact
-    (see _gear_rows), so a projection lands on the row up to O(dphi^2) renormalization.
+    r_a w_a . A_a + r_b w_b . A_b = 0 at the end of every substep, exactly rather than on average; and no angle
+    error is carried into the next substep (there is no C(x) to drift, so no stabilization): the total turns,
+    sums of per-substep turns that each keep the ratio, keep it too. Exact gradient: q += 0.5 (0, dphi) q moves
+    vec(dq) = v by 0.5 (s dphi + dphi x v) and A by dphi x A, so dC = dphi . r (s A + A x v); a projection
+    lands on the row up to the O(dphi^2) renormalization.
     """
-    a = gather(fam.body_a[idx], x, q, inv_mass, inv_inertia_body)
-    b = gather(fam.body_b[idx], x, q, inv_mass, inv_inertia_body)
-    C, grad = _gear_rows(fam, idx, a, b, q_prev)
-    lam_k = lam[idx]
-    solve_rows(a, b, grad, None, C, _alpha(compliance, idx, h), lam_k, x, q)
+    _require(before)
+    idx = np.asarray(idx)
+    k = len(idx)
+    pair = gather(_rows(fam.body_a, idx), _rows(fam.body_b, idx), x, q, inv_mass, inv_inertia_body, before)
+    s, v = turn_since(pair.q, _rows(before.q, pair.index))
+    A = matvec(pair.R, _both(_rows(fam.axis_a, idx), _rows(fam.axis_b, idx)))
+    r = _both(fam.radius_a.take(idx), fam.radius_b.take(idx))
+    Cs = 2.0 * r * dot(v, A)
+    g = r[:, None] * (s[:, None] * A + cross(A, v))
+    lam_k = lam.take(idx)
+    solve_rows(pair, np.zeros_like(g), g, Cs[:k] + Cs[k:], _alpha(compliance, idx, h), lam_k, x, q)
     lam[idx] = lam_k
 
 
 def project_gear_to_weight(fam: GearToWeight, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                           x_prev, q_prev):
+                           before: Frame):
     """Rope over a gear, per substep: the weight's displacement along the rope equals the rim's travel,
     C = (dtheta x arm) . d - (x_w - x_w_prev) . d, dtheta = 2 vec(q_g q_g_prev^-1) (scalar part >= 0).
 
@@ -370,18 +427,18 @@ def project_gear_to_weight(fam: GearToWeight, idx, x, q, inv_mass, inv_inertia_b
     at the end of every substep and the rope never creeps. With u = arm x d, C = 2 v . u - dx_w . d, and
     (as in project_gear_to_gear) g_gear = s u + v x u exactly; l_weight = -d.
     """
-    g = gather(fam.gear[idx], x, q, inv_mass, inv_inertia_body)
-    wt = gather(fam.weight[idx], x, q, inv_mass, inv_inertia_body)
-    s, v = turn_since(g.q, _prev_orientation(g, q_prev))
-    d = fam.direction[idx]
-    u = cross(fam.arm[idx], d)
-    real = wt.index != WORLD
-    moved = np.where(real[:, None], wt.x - x_prev[np.where(real, wt.index, 0)], 0.0)
-    C = 2.0 * dot(v, u) - dot(moved, d)
+    _require(before)
+    idx = np.asarray(idx)
+    k = len(idx)
+    pair = gather(_rows(fam.gear, idx), _rows(fam.weight, idx), x, q, inv_mass, inv_inertia_body, before)
+    s, v = turn_since(pair.q[:k], _rows(before.q, pair.index[:k]))
+    d = _rows(fam.direction, idx)
+    u = cross(_rows(fam.arm, idx), d)
+    moved = pair.x[k:] - _rows(before.x, pair.index[k:])  # WORLD: 0 - 0
     zero = np.zeros_like(d)
-    lam_k = lam[idx]
-    solve_rows(g, wt, (zero, s[:, None] * u + cross(v, u), -d, zero), None, C, _alpha(compliance, idx, h), lam_k,
-               x, q)
+    lam_k = lam.take(idx)
+    solve_rows(pair, _both(zero, -d), _both(s[:, None] * u + cross(v, u), zero), 2.0 * dot(v, u) - dot(moved, d),
+               _alpha(compliance, idx, h), lam_k, x, q)
     lam[idx] = lam_k
 
 

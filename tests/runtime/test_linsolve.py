@@ -10,6 +10,7 @@ from isaac_runtime.linsolve import (
     apply_inverse_mass,
     assemble_dense,
     choose_solver,
+    max_rows_per_body,
     solve_dense,
     solve_sparse,
 )
@@ -244,6 +245,10 @@ def test_inconsistent_singular_system_is_finite_least_squares():
 def test_empty_and_choose_solver():
     lam, info = solve_dense(np.zeros((0, 0)), np.zeros(0))
     assert lam.shape == (0,) and not info.rank_deficient
-    assert choose_solver(9, False) == "dense"
-    assert choose_solver(3000, False) == "sparse"
-    assert choose_solver(3000, True) in ("sparse", "tree")
+    assert choose_solver(9, True) == "dense"
+    assert choose_solver(3000, False, 3000) == "sparse"
+    assert choose_solver(3000, True, 3000) == "tree"
+    assert choose_solver(3000, True, 6) == "sparse"
+    s = chain(np.random.default_rng(0), 5)  # body 0 static; bodies 1..3 carry two joints
+    J, rb, g = s.arrays()
+    assert max_rows_per_body(rb, s.dynamic) == 6

@@ -1,0 +1,243 @@
+"""Stage 4 (constraints part): IR constraints -> vectorized families, row metadata, time-window epochs.
+
+Every declared constraint is compiled once into instances of the library's families (one numpy struct of
+arrays per family). Each row knows its constraint, its time window, whether `-` removed it, and its
+Baumgarte gains. The run is cut into epochs at the switch times; within an epoch the active row set, and so
+the structure of J M^-1 J^T, is fixed, which lets the solver's sparsity pattern be built once per epoch.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from isaac_lang import expr as E
+from isaac_lang import ir
+
+from . import linsolve
+from .constraints import layout as L
+from .constraints.rows import capture_element_references, row_count, write_rows
+
+# rows of each family, in the order the kernels write them, and the element tag of each
+ROW_TAGS = {"nail": ("tx", "ty", "tz"), "point": ("tx", "ty", "tz")}
+
+# default stabilization: f = 1 / (STABILIZE_STEPS * h), so that omega h = 2 pi / STABILIZE_STEPS ~ 0.31:
+# stiff enough to remove drift within a few dozen steps, far inside RK4's stability region (omega h < 2.78)
+STABILIZE_STEPS = 20
+
+
+@dataclass
+class MovingNail:
+    family: int  # index into ConstraintPlan.families
+    instance: int
+    position: E.Expr  # P(t)
+    velocity: E.Expr  # dP/dt
+    acceleration: E.Expr  # d2P/dt2
+
+
+@dataclass
+class Epoch:
+    """A stretch of time with a fixed set of active rows, and the solver structure that goes with it."""
+
+    start: float
+    end: float
+    active: np.ndarray  # (m,) global row indices
+    solver: str  # dense | sparse | tree | none
+    pattern: object = None  # linsolve.SparsePattern or TreeSolver, built on first use
+
+
+@dataclass
+class ConstraintPlan:
+    names: list  # constraint names, indexed by row_constraint
+    families: list  # layout family objects
+    family_offsets: list  # first global row of each family
+    total_rows: int
+    row_constraint: np.ndarray  # (M,) int
+    row_kept: np.ndarray  # (M,) bool: not removed by `-`
+    row_group: np.ndarray  # (M,) int: rows of one instance share a group
+    row_start: np.ndarray  # (M,) s
+    row_end: np.ndarray  # (M,) s
+    row_ks: np.ndarray  # (M,) 1/s2, Baumgarte position gain
+    row_kd: np.ndarray  # (M,) 1/s, Baumgarte velocity gain
+    row_compliance: np.ndarray  # (M,) procedural softness
+    row_bodies: np.ndarray  # (M, 2) int, fixed for the whole run
+    moving_nails: list
+    epochs: list = field(default_factory=list)
+    linear_solver: str = "auto"
+
+    def epoch_at(self, t: float) -> Epoch:
+        for epoch in self.epochs:
+            if epoch.start <= t < epoch.end:
+                return epoch
+        return self.epochs[-1]
+
+    def switch_times(self) -> list:
+        return [e.start for e in self.epochs[1:]]
+
+
+def stabilization_gains(frequency: float, damping_ratio: float) -> tuple:
+    """Baumgarte gains from a frequency (Hz) and a damping ratio: C'' + kd C' + ks C = 0.
+
+    omega = 2 pi f;  ks = omega^2;  kd = 2 zeta omega  (zeta = 1: critically damped, no overshoot)
+    """
+    omega = 2.0 * math.pi * frequency
+    return omega * omega, 2.0 * damping_ratio * omega
+
+
+def default_stabilization_frequency(step: float) -> float:
+    return 1.0 / (STABILIZE_STEPS * step)
+
+
+class _FamilyBuilder:
+    """Collects the instances of one family, then builds its struct of arrays."""
+
+    def __init__(self, cls):
+        self.cls = cls
+        self.columns: dict[str, list] = {}
+        self.count = 0
+
+    def add(self, **values) -> int:
+        for key, value in values.items():
+            self.columns.setdefault(key, []).append(value)
+        self.count += 1
+        return self.count - 1
+
+    def build(self):
+        return self.cls(**{key: np.asarray(values) for key, values in self.columns.items()})
+
+
+def compile_constraints(scene: ir.Scene, step: float, x0, q0) -> ConstraintPlan:
+    index = scene.body_index()
+    builders: dict[str, _FamilyBuilder] = {}
+    rows_meta: dict[str, list] = {}  # family -> per-row (constraint, kept, group) in instance order
+    moving: list = []
+    order = ("nail", "point", "orient", "plane", "gear", "rope", "element")
+    classes = {"nail": L.PointToNail, "point": L.PointToPoint, "orient": L.Orientation, "plane": L.PointOnPlane,
+               "gear": L.GearToGear, "rope": L.GearToWeight, "element": L.Element}
+    group = 0
+    for c_index, constraint in enumerate(scene.constraints):
+        for term in constraint.terms:
+            builder = builders.setdefault(term.family, _FamilyBuilder(classes[term.family]))
+            instance = _add_instance(builder, term, index, moving)
+            # an element term has the one row its name says; other one-row families are tagged by family
+            tags = ROW_TAGS.get(term.family, term.rows if term.family == "element" else (term.family,))
+            for tag in tags:
+                rows_meta.setdefault(term.family, []).append((c_index, tag in term.rows, group))
+            group += 1
+    families, offsets, meta, total = [], [], [], 0
+    for name in order:
+        if name not in builders:
+            continue
+        family = builders[name].build()
+        if name == "element":
+            capture_element_references(family, x0, q0)
+        for m in moving:
+            if m.family == name:
+                m.family = len(families)
+        families.append(family)
+        offsets.append(total)
+        total += row_count(family)
+        meta.extend(rows_meta[name])
+    return _finish(scene, step, families, offsets, total, meta, moving, x0, q0)
+
+
+def _add_instance(builder, term: ir.ConstraintTerm, index: dict, moving: list) -> int:
+    b = [index[name] for name in term.bodies] + [L.WORLD]
+    p = term.param
+    if term.family == "nail":
+        target = p("target")
+        start = E.evaluate(target, {"t": 0.0}) if not isinstance(target, E.Const) else target.value
+        instance = builder.add(body=b[0], point=p("point"), target=np.asarray(start, float))
+        if not isinstance(target, E.Const):
+            velocity = E.derivative(target)
+            moving.append(MovingNail("nail", instance, target, velocity, E.derivative(velocity)))
+        return instance
+    if term.family == "point":
+        return builder.add(body_a=b[0], point_a=p("point_a"), body_b=b[1], point_b=p("point_b"))
+    if term.family == "orient":
+        return builder.add(body_a=b[0], axis_a=p("axis_a"), body_b=b[1], axis_b=p("axis_b"))
+    if term.family == "plane":
+        return builder.add(body_a=b[0], point_a=p("point_a"), body_b=b[1], plane_point=p("plane_point"),
+                           plane_normal=p("normal"))
+    if term.family == "gear":
+        return builder.add(body_a=b[0], axis_a=p("axis_a"), radius_a=p("radius_a"), body_b=b[1],
+                           axis_b=p("axis_b"), radius_b=p("radius_b"))
+    if term.family == "rope":
+        return builder.add(gear=b[0], arm=p("arm"), weight=b[1], direction=p("direction"))
+    if term.family == "element":
+        return builder.add(body_a=b[0], body_b=b[1], axis=p("axis"), rotational=p("rotational"))
+    raise ValueError(f"unknown constraint family {term.family}")
+
+
+def _finish(scene, step, families, offsets, total, meta, moving, x0, q0) -> ConstraintPlan:
+    constraints = scene.constraints
+    row_constraint = np.array([m[0] for m in meta], dtype=np.int64).reshape(-1)
+    ks, kd, compliance = np.zeros(total), np.zeros(total), np.zeros(total)
+    for c_index, constraint in enumerate(constraints):
+        frequency = (constraint.stabilize_frequency or scene.solver.stabilize_frequency
+                     or default_stabilization_frequency(step))
+        ratio = constraint.damping_ratio if constraint.damping_ratio is not None else scene.solver.damping_ratio
+        mask = row_constraint == c_index
+        ks[mask], kd[mask] = stabilization_gains(frequency, ratio)
+        compliance[mask] = constraint.compliance if constraint.compliance is not None else scene.solver.compliance
+    plan = ConstraintPlan(
+        names=[c.name for c in constraints], families=families, family_offsets=offsets, total_rows=total,
+        row_constraint=row_constraint, row_kept=np.array([m[1] for m in meta], dtype=bool).reshape(-1),
+        row_group=np.array([m[2] for m in meta], dtype=np.int64).reshape(-1),
+        row_start=np.array([constraints[c].start for c in row_constraint]).reshape(-1),
+        row_end=np.array([constraints[c].end for c in row_constraint]).reshape(-1),
+        row_ks=ks, row_kd=kd, row_compliance=compliance,
+        row_bodies=_row_bodies(families, offsets, total, x0, q0), moving_nails=moving,
+        linear_solver=scene.solver.linear_solver,
+    )
+    plan.epochs = _epochs(plan, scene.time.start, scene.time.end)
+    return plan
+
+
+def _row_bodies(families, offsets, total, x0, q0) -> np.ndarray:
+    """Which bodies each row touches: fixed for the run, so read once from a first evaluation."""
+    from .rotation import quat_to_matrix
+
+    block = L.RowBlock.empty(total)
+    frame = L.BodyFrame(x0, q0, np.zeros_like(x0), np.zeros_like(x0), quat_to_matrix(q0))
+    for family, offset in zip(families, offsets):
+        write_rows(family, frame, block, offset)
+    return block.row_bodies.copy()
+
+
+def _epochs(plan: ConstraintPlan, start: float, end: float) -> list:
+    times = {start, end}
+    for t in np.concatenate((plan.row_start, plan.row_end)):
+        if start < t < end:
+            times.add(float(t))
+    bounds = sorted(times)
+    epochs = []
+    for t0, t1 in zip(bounds[:-1], bounds[1:]):
+        active = np.flatnonzero(plan.row_kept & (plan.row_start <= t0) & (plan.row_end > t0))
+        epochs.append(Epoch(t0, t1, active, "none" if active.size == 0 else "pending"))
+    if not epochs:
+        epochs.append(Epoch(start, end, np.zeros(0, dtype=np.int64), "none"))
+    return epochs
+
+
+def prepare_epoch(plan: ConstraintPlan, epoch: Epoch, dynamic_mask: np.ndarray) -> None:
+    """Choose the linear solver for this epoch's rows and build its structure (once)."""
+    if epoch.solver != "pending":
+        return
+    rb = plan.row_bodies[epoch.active]
+    n = len(dynamic_mask)
+    choice = plan.linear_solver
+    tree = None
+    if choice in ("auto", "tree"):
+        tree = linsolve.TreeSolver.build(rb, plan.row_group[epoch.active], n, dynamic_mask)
+    if choice == "auto":
+        hub_rows = linsolve.max_rows_per_body(rb, dynamic_mask)
+        choice = linsolve.choose_solver(len(epoch.active), tree is not None, hub_rows)
+    if choice == "tree" and tree is None:
+        choice = "sparse"  # not a tree: the linear-time method does not apply
+    if choice == "tree":
+        epoch.pattern = tree
+    elif choice == "sparse":
+        epoch.pattern = linsolve.SparsePattern.build(rb, n, dynamic_mask)
+    epoch.solver = choice

@@ -1,0 +1,145 @@
+"""Forces stage: gravity, springs and dampers, user loads, and the gyroscopic term, as force/torque arrays.
+
+Each kind is vectorized over all its instances; a kind the scene does not use is not in the plan at all.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from isaac_lang import expr as E
+from isaac_lang import ir
+
+from .rotation import quat_to_matrix
+
+
+@dataclass
+class Springs:
+    """Springs and dampers between two body points, or a body point and a world point (body_b = -1)."""
+
+    body_a: np.ndarray  # (k,) int
+    point_a: np.ndarray  # (k,3) body frame
+    body_b: np.ndarray  # (k,) int, -1 for a world point
+    point_b: np.ndarray  # (k,3) body frame of b, or world
+    stiffness: np.ndarray  # (k,) N/m
+    rest: np.ndarray  # (k,) m
+    damping: np.ndarray  # (k,) N s/m
+
+
+@dataclass
+class Loads:
+    """User forces and torques, functions of time, applied at body points."""
+
+    body: np.ndarray  # (k,) int
+    point: np.ndarray  # (k,3) body frame
+    force: list  # k expressions (3,)
+    torque: list
+
+
+@dataclass
+class ForcePlan:
+    weight: np.ndarray | None  # (n,3) m g for dynamic bodies; None when gravity is off or nothing falls
+    springs: Springs | None
+    loads: Loads | None
+    gyroscopic: np.ndarray | None  # indices of dynamic bodies with unequal principal moments
+
+    def stages(self) -> dict:
+        return {"gravity": self.weight is not None, "springs": self.springs is not None,
+                "loads": self.loads is not None, "gyroscopic": self.gyroscopic is not None}
+
+
+def compile_forces(scene: ir.Scene, mass, dynamic, inertia_body, x0, q0) -> ForcePlan:
+    gravity = np.asarray(scene.gravity, dtype=float)
+    weight = None
+    if np.any(gravity != 0) and np.any(dynamic):
+        weight = np.where(dynamic[:, None], mass[:, None] * gravity[None, :], 0.0)
+    moments = np.einsum("nii->ni", inertia_body)
+    uneven = dynamic & (np.ptp(moments, axis=1) > 1e-12 * np.maximum(moments.max(axis=1), 1e-300))
+    return ForcePlan(weight, _springs(scene, x0, q0), _loads(scene), np.flatnonzero(uneven) if uneven.any() else None)
+
+
+def _springs(scene: ir.Scene, x0, q0) -> Springs | None:
+    index = scene.body_index()
+    chosen = [f for f in scene.forces if f.type in ("spring", "damper")]
+    if not chosen:
+        return None
+    body_a, point_a, body_b, point_b, rest = [], [], [], [], []
+    R0 = quat_to_matrix(q0)
+    for force in chosen:
+        a = index[force.bodies[0]]
+        b = index[force.bodies[1]] if len(force.bodies) > 1 else -1
+        body_a.append(a)
+        point_a.append(force.points[0])
+        body_b.append(b)
+        point_b.append(force.points[1])
+        world_a = x0[a] + R0[a] @ np.asarray(force.points[0])
+        world_b = x0[b] + R0[b] @ np.asarray(force.points[1]) if b >= 0 else np.asarray(force.points[1])
+        # the rest length defaults to the distance at the start
+        rest.append(force.rest_length if force.rest_length is not None else float(np.linalg.norm(world_b - world_a)))
+    return Springs(np.array(body_a), np.array(point_a, float), np.array(body_b), np.array(point_b, float),
+                   np.array([f.stiffness for f in chosen]), np.array(rest), np.array([f.damping for f in chosen]))
+
+
+def _loads(scene: ir.Scene) -> Loads | None:
+    index = scene.body_index()
+    chosen = [f for f in scene.forces if f.type == "load"]
+    if not chosen:
+        return None
+    return Loads(np.array([index[f.bodies[0]] for f in chosen]), np.array([f.points[0] for f in chosen], float),
+                 [f.force for f in chosen], [f.torque for f in chosen])
+
+
+def apply_forces(plan: ForcePlan, x, v, w, R, t, inertia_world, force_out, torque_out) -> None:
+    """force_out, torque_out (n,3) <- the sum of every force stage of the plan at time t."""
+    if plan.weight is not None:
+        force_out[:] = plan.weight
+    else:
+        force_out[:] = 0.0
+    torque_out[:] = 0.0
+    if plan.springs is not None:
+        _apply_springs(plan.springs, x, v, w, R, force_out, torque_out)
+    if plan.loads is not None:
+        _apply_loads(plan.loads, x, R, t, force_out, torque_out)
+    if plan.gyroscopic is not None:
+        k = plan.gyroscopic
+        # tau -= w x (I w)
+        torque_out[k] -= np.cross(w[k], np.einsum("kij,kj->ki", inertia_world[k], w[k]))
+
+
+def _world_point(body, point, x, R):
+    """World position of body points (world points pass through for body -1), and their arms r = R p."""
+    inside = body >= 0
+    safe = np.where(inside, body, 0)
+    arm = np.where(inside[:, None], np.einsum("kij,kj->ki", R[safe], point), 0.0)
+    world = np.where(inside[:, None], x[safe] + arm, point)
+    return world, arm, safe, inside
+
+
+def _apply_springs(s: Springs, x, v, w, R, force_out, torque_out) -> None:
+    pa, ra, a, _ = _world_point(s.body_a, s.point_a, x, R)
+    pb, rb, b, b_inside = _world_point(s.body_b, s.point_b, x, R)
+    d = pb - pa
+    length = np.linalg.norm(d, axis=1)
+    direction = d / np.maximum(length, 1e-12)[:, None]
+    # velocity of each attachment point: v + w x r
+    va = v[a] + np.cross(w[a], ra)
+    vb = np.where(b_inside[:, None], v[b] + np.cross(w[b], rb), 0.0)
+    closing = np.einsum("ki,ki->k", vb - va, direction)
+    # F on a = (k (|d| - L0) + c d|d|/dt) d_hat;  b gets -F
+    magnitude = s.stiffness * (length - s.rest) + s.damping * closing
+    f = magnitude[:, None] * direction
+    np.add.at(force_out, a, f)
+    np.add.at(torque_out, a, np.cross(ra, f))
+    np.add.at(force_out, b[b_inside], -f[b_inside])
+    np.add.at(torque_out, b[b_inside], -np.cross(rb, f)[b_inside])
+
+
+def _apply_loads(loads: Loads, x, R, t, force_out, torque_out) -> None:
+    env = {"t": t}
+    for k, body in enumerate(loads.body):
+        f = np.asarray(E.evaluate(loads.force[k], env), dtype=float)
+        arm = R[body] @ loads.point[k]
+        force_out[body] += f
+        # a force at a point off the centre of mass also turns the body: tau = r x F
+        torque_out[body] += np.asarray(E.evaluate(loads.torque[k], env), dtype=float) + np.cross(arm, f)

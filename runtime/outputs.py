@@ -1,0 +1,80 @@
+"""Stage 6, outputs: the trajectory sampled at the frame rate, and files written atomically.
+
+trajectory.npz (ARCHITECTURE.md): time (T,), bodies (B,) unicode, position (T,B,3), orientation (T,B,4) (w,x,y,z),
+linear_velocity (T,B,3), angular_velocity (T,B,3), constraint_error (T,), energy (T,).
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+class Recorder:
+    """Preallocated frame arrays, filled one frame at a time."""
+
+    def __init__(self, frame_times: np.ndarray, names: list):
+        T, B = len(frame_times), len(names)
+        self.time = frame_times
+        self.bodies = np.array(names, dtype=str)
+        self.position = np.full((T, B, 3), np.nan)
+        self.orientation = np.full((T, B, 4), np.nan)
+        self.linear_velocity = np.full((T, B, 3), np.nan)
+        self.angular_velocity = np.full((T, B, 3), np.nan)
+        self.constraint_error = np.full(T, np.nan)
+        self.energy = np.full(T, np.nan)
+        self.count = 0
+
+    def record(self, state, constraint_error: float, energy: float) -> None:
+        k = self.count
+        self.position[k] = state.x
+        self.orientation[k] = state.q
+        self.linear_velocity[k] = state.v
+        self.angular_velocity[k] = state.w
+        self.constraint_error[k] = constraint_error
+        self.energy[k] = energy
+        self.count += 1
+
+    def arrays(self) -> dict:
+        """The recorded frames only (a run stopped by a blow-up keeps what it had)."""
+        k = self.count
+        return {"time": self.time[:k], "bodies": self.bodies, "position": self.position[:k],
+                "orientation": self.orientation[:k], "linear_velocity": self.linear_velocity[:k],
+                "angular_velocity": self.angular_velocity[:k], "constraint_error": self.constraint_error[:k],
+                "energy": self.energy[:k]}
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write to a temporary file beside path, then rename: a reader never sees half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_npz(path: Path, arrays: dict) -> None:
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **arrays)
+    write_atomic(path, buffer.getvalue())
+
+
+def write_json(path: Path, data) -> None:
+    write_atomic(path, (json.dumps(data, indent=1, sort_keys=True, allow_nan=False, default=_plain) + "\n").encode())
+
+
+def _plain(value):
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"cannot write {type(value).__name__} as JSON")

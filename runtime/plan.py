@@ -1,0 +1,161 @@
+"""Stage 4, plan: what this scene needs and nothing more, with its arrays preallocated.
+
+The plan is read-only during the run (MuJoCo's mjModel): body masses and inverse inertias, the force stages,
+the constraint families, the kinematic paths, the solver, the step. `describe()` is what `isaac plan` prints.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from isaac_lang import expr as E
+from isaac_lang import ir
+
+from .constraint_plan import ConstraintPlan, compile_constraints
+from .forces import ForcePlan, compile_forces
+from .kinematics import KinematicPaths, compile_kinematics
+
+# default step: fine enough that RK4's error on a 1 m pendulum is ~1e-12 per period
+DEFAULT_STEP = 1e-3
+# the procedural plan's default step: one display frame
+DEFAULT_PROCEDURAL_STEP = 1.0 / 60.0
+# `auto` picks the procedural plan above this many dynamic bodies (docs/solver.md)
+AUTO_PROCEDURAL_BODIES = 200
+
+
+@dataclass
+class PlanOptions:
+    solver: str | None = None  # overrides the scene's plan
+    step: float | None = None  # overrides the scene's step
+    until: float | None = None
+
+
+@dataclass
+class Plan:
+    scene: ir.Scene
+    solver: str  # dynamics | procedural
+    integrator: str
+    step: float
+    step_reason: str
+    start: float
+    end: float
+    frame_times: np.ndarray  # (T,) output sample times
+    names: list  # body names
+    mass: np.ndarray  # (n,)
+    inv_mass: np.ndarray  # (n,) 0 for static and kinematic bodies
+    inertia_body: np.ndarray  # (n,3,3)
+    inv_inertia_body: np.ndarray  # (n,3,3) 0 for static and kinematic bodies
+    dynamic: np.ndarray  # (n,) bool
+    x0: np.ndarray
+    q0: np.ndarray
+    v0: np.ndarray
+    w0: np.ndarray
+    forces: ForcePlan
+    constraints: ConstraintPlan | None
+    kinematics: KinematicPaths | None
+    gravity: np.ndarray
+    warnings: list = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return len(self.names)
+
+    def stages(self) -> dict:
+        """Each stage of the step loop and whether this scene runs it."""
+        stages = {"kinematic paths": self.kinematics is not None}
+        stages.update(self.forces.stages())
+        stages["constraints"] = self.constraints is not None
+        stages["collisions"] = False  # no collidable pairs are handled yet (collision issue)
+        stages["wind"] = False
+        stages["audio"] = False
+        return stages
+
+    def describe(self) -> str:
+        lines = [f"scene {self.scene.name}: {self.n} bodies ({int(self.dynamic.sum())} dynamic)",
+                 f"solver: {self.solver}, integrator {self.integrator}, step {self.step:g} s ({self.step_reason})",
+                 f"time: {self.start:g} s .. {self.end:g} s, {len(self.frame_times)} frames"]
+        if self.constraints is not None:
+            c = self.constraints
+            families = ", ".join(f"{type(f).__name__} x{len(_first(f))}" for f in c.families)
+            lines.append(f"constraints: {len(c.names)} declared, {c.total_rows} rows ({families})")
+            for epoch in c.epochs:
+                lines.append(f"  {epoch.start:g} s .. {epoch.end:g} s: {len(epoch.active)} active rows, "
+                             f"linear solver {epoch.solver if epoch.solver != 'pending' else 'chosen at first use'}")
+        lines.append("stages:")
+        for name, on in self.stages().items():
+            lines.append(f"  {'on ' if on else 'off'} {name}")
+        return "\n".join(lines)
+
+
+def _first(family):
+    for name in ("body_a", "body", "gear"):
+        if hasattr(family, name):
+            return getattr(family, name)
+    return []
+
+
+def compile_plan(scene: ir.Scene, options: PlanOptions | None = None) -> Plan:
+    options = options or PlanOptions()
+    solver = _choose_solver(scene, options)
+    step, reason = _choose_step(scene, solver, options)
+    end = min(scene.time.end, options.until) if options.until is not None else scene.time.end
+    bodies = _body_arrays(scene)
+    kinematics = compile_kinematics(scene)
+    x0, q0 = bodies["x0"], bodies["q0"]
+    constraints = compile_constraints(scene, step, x0, q0) if scene.constraints else None
+    forces = compile_forces(scene, bodies["mass"], bodies["dynamic"], bodies["inertia_body"], x0, q0)
+    frames = _frame_times(scene.time.start, end, scene.time.frame_rate)
+    return Plan(scene=scene, solver=solver, integrator=scene.solver.integrator, step=step, step_reason=reason,
+                start=scene.time.start, end=end, frame_times=frames, forces=forces, constraints=constraints,
+                kinematics=kinematics, gravity=np.asarray(scene.gravity, float), **bodies)
+
+
+def _choose_solver(scene: ir.Scene, options: PlanOptions) -> str:
+    plan = options.solver or scene.solver.plan
+    if plan != "auto":
+        return plan
+    dynamic = sum(1 for b in scene.bodies if b.motion == "dynamic")
+    return "procedural" if dynamic > AUTO_PROCEDURAL_BODIES else "dynamics"
+
+
+def _choose_step(scene: ir.Scene, solver: str, options: PlanOptions) -> tuple:
+    if options.step is not None:
+        return options.step, "--step"
+    if scene.solver.step is not None:
+        return scene.solver.step, "set by the scene"
+    frame = 1.0 / scene.time.frame_rate
+    target = DEFAULT_PROCEDURAL_STEP if solver == "procedural" else DEFAULT_STEP
+    # a whole number of steps per frame, no longer than the target
+    steps_per_frame = max(1, math.ceil(frame / target - 1e-9))
+    return frame / steps_per_frame, f"default: {steps_per_frame} per frame"
+
+
+def _frame_times(start: float, end: float, rate: float) -> np.ndarray:
+    count = int(math.floor((end - start) * rate + 1e-9)) + 1
+    times = start + np.arange(count) / rate
+    if times[-1] < end - 1e-12:
+        times = np.append(times, end)
+    return times
+
+
+def _body_arrays(scene: ir.Scene) -> dict:
+    n = len(scene.bodies)
+    mass = np.zeros(n)
+    inertia = np.tile(np.eye(3), (n, 1, 1))
+    dynamic = np.array([b.motion == "dynamic" for b in scene.bodies], dtype=bool)
+    x0, q0 = np.zeros((n, 3)), np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    for i, body in enumerate(scene.bodies):
+        mass[i] = body.mass or 0.0
+        if body.inertia is not None:
+            inertia[i] = np.asarray(body.inertia)
+        x0[i] = E.evaluate(body.position, {"t": scene.time.start})
+        q = np.asarray(E.evaluate(body.orientation, {"t": scene.time.start}), dtype=float)
+        q0[i] = q / np.linalg.norm(q)
+    inv_mass = np.where(dynamic, 1.0 / np.where(mass > 0, mass, 1.0), 0.0)
+    inv_inertia = np.where(dynamic[:, None, None], np.linalg.inv(inertia), 0.0)
+    return {"names": [b.name for b in scene.bodies], "mass": mass, "inv_mass": inv_mass, "inertia_body": inertia,
+            "inv_inertia_body": inv_inertia, "dynamic": dynamic, "x0": x0, "q0": q0,
+            "v0": np.array([b.velocity for b in scene.bodies], float).reshape(n, 3),
+            "w0": np.array([b.angular_velocity for b in scene.bodies], float).reshape(n, 3)}

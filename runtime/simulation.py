@@ -1,0 +1,209 @@
+"""Stage 5, the step loop, and the embedding API: a Simulation steps a plan and exposes its state.
+
+    sim = Simulation.from_file("scenes/pendulum.isaac", overrides={"theta0": "30 deg"})
+    sim.advance_to(2.0)
+    sim.state.x[sim.body("bob")]
+
+A step never crosses a constraint's switch time: the loop cuts time into segments at frames and switches and
+takes equal steps no longer than the plan's inside each, so a switch happens exactly at its time.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .dynamics import Dynamics
+from .integrate import INTEGRATORS, Stages
+from .kinematics import evaluate_paths
+from .plan import Plan, PlanOptions, compile_plan
+from .rotation import quat_to_matrix
+
+# what counts as a blow-up: any non-finite number, a speed beyond this, or a constraint error beyond this
+RUNAWAY_SPEED = 1e6  # m/s or rad/s
+RUNAWAY_CONSTRAINT_ERROR = 1.0  # m (or rad): a joint this far apart is not a joint any more
+
+
+class NumericalError(Exception):
+    """The simulation became meaningless: says when (time and step) and what (body or constraint)."""
+
+    def __init__(self, time: float, step: int, culprit: str, detail: str):
+        self.time, self.step, self.culprit, self.detail = time, step, culprit, detail
+        super().__init__(f"numerical blow-up at t = {time:.6g} s (step {step}): {culprit}: {detail}")
+
+
+@dataclass
+class State:
+    """The mutable part: time and the struct-of-arrays state of every body."""
+
+    t: float
+    x: np.ndarray  # (n,3) centre of mass, m
+    q: np.ndarray  # (n,4) orientation (w, x, y, z)
+    v: np.ndarray  # (n,3) m/s
+    w: np.ndarray  # (n,3) world angular velocity, rad/s
+    steps: int = 0
+
+    @classmethod
+    def initial(cls, plan: Plan) -> "State":
+        return cls(plan.start, plan.x0.copy(), plan.q0.copy(), plan.v0.copy(), plan.w0.copy())
+
+
+class Simulation:
+    def __init__(self, plan: Plan, source: dict | None = None):
+        self.plan = plan
+        self.state = State.initial(plan)
+        self.source = source or {}
+        self.events: list = []
+        self.dynamics = Dynamics(plan)
+        self.procedural = None
+        if plan.solver == "procedural":
+            from .procedural_plan import ProceduralStepper
+
+            self.procedural = ProceduralStepper(plan, self.dynamics)
+        self._integrate = INTEGRATORS[plan.integrator]
+        self._stages = Stages(plan.n)
+        self._a = np.zeros((plan.n, 3))
+        self._alpha = np.zeros((plan.n, 3))
+        self._switches = np.array(plan.constraints.switch_times() if plan.constraints else [])
+        self._sync_kinematics()
+
+    # -- construction -------------------------------------------------------------------------------------
+
+    @classmethod
+    def from_file(cls, path, overrides: dict | None = None, **options) -> "Simulation":
+        from isaac_lang.load import load_scene
+
+        scene = load_scene(Path(path), overrides).scene
+        return cls(compile_plan(scene, PlanOptions(**options)), {"path": Path(path), "overrides": overrides or {},
+                                                                  "options": options})
+
+    @classmethod
+    def from_text(cls, text: str, overrides: dict | None = None, folder=".", **options) -> "Simulation":
+        from isaac_lang.load import load_text
+
+        scene = load_text(text, overrides=overrides, folder=folder).scene
+        return cls(compile_plan(scene, PlanOptions(**options)), {"text": text, "folder": folder,
+                                                                  "overrides": overrides or {}, "options": options})
+
+    # -- queries ------------------------------------------------------------------------------------------
+
+    def body(self, name: str) -> int:
+        return self.plan.names.index(name)
+
+    def energy(self) -> float:
+        """Kinetic plus gravitational potential energy of the dynamic bodies, J."""
+        plan, s = self.plan, self.state
+        d = plan.dynamic
+        R = quat_to_matrix(s.q[d])
+        inertia_world = R @ plan.inertia_body[d] @ np.swapaxes(R, 1, 2)
+        # E = sum 1/2 m v^2 + 1/2 w . I w - m g . x
+        kinetic = 0.5 * np.sum(plan.mass[d] * np.einsum("ni,ni->n", s.v[d], s.v[d]))
+        kinetic += 0.5 * np.einsum("ni,nij,nj->", s.w[d], inertia_world, s.w[d])
+        potential = -np.sum(plan.mass[d] * (s.x[d] @ plan.gravity))
+        return float(kinetic + potential)
+
+    def constraint_errors(self) -> tuple:
+        """(max |C| over active position rows, index of that row or -1) at the current state."""
+        c = self.plan.constraints
+        if c is None:
+            return 0.0, -1
+        s = self.state
+        epoch = c.epoch_at(s.t)
+        if not epoch.active.size:
+            return 0.0, -1
+        block = self.dynamics.rows_at(self.dynamics.frame(s.x, s.q, s.v, s.w, s.t))
+        active = epoch.active[~block.velocity_only[epoch.active]]
+        if not active.size:
+            return 0.0, -1
+        errors = np.abs(block.C[active])
+        worst = int(np.argmax(errors))
+        return float(errors[worst]), int(active[worst])
+
+    # -- live inputs --------------------------------------------------------------------------------------
+
+    def set_pose(self, name: str, position, orientation=(1.0, 0.0, 0.0, 0.0)) -> None:
+        """Drive a kinematic body from outside (a mouse, a tracker) until `release_pose`."""
+        index = self.body(name)
+        paths = self.plan.kinematics
+        if paths is None or index not in paths.index:
+            raise ValueError(f"body `{name}` is not kinematic; declare it `kinematic` to drive it")
+        quat = np.asarray(orientation, float)
+        paths.overrides[index] = (np.asarray(position, float), quat / np.linalg.norm(quat))
+        self._sync_kinematics()
+
+    def release_pose(self, name: str) -> None:
+        self.plan.kinematics.overrides.pop(self.body(name), None)
+
+    def set_parameter(self, name: str, value: str) -> None:
+        """Change a scene parameter (a `let`) mid-run: the scene is re-lowered and re-planned, and every body
+        that still exists keeps its current state."""
+        overrides = {**self.source.get("overrides", {}), name: value}
+        if "path" in self.source:
+            fresh = Simulation.from_file(self.source["path"], overrides, **self.source["options"])
+        else:
+            fresh = Simulation.from_text(self.source["text"], overrides, self.source["folder"], **self.source["options"])
+        old = {n: i for i, n in enumerate(self.plan.names)}
+        for j, body in enumerate(fresh.plan.names):
+            if body in old and fresh.plan.dynamic[j]:
+                i = old[body]
+                for array in ("x", "q", "v", "w"):
+                    getattr(fresh.state, array)[j] = getattr(self.state, array)[i]
+        fresh.state.t, fresh.state.steps = self.state.t, self.state.steps
+        self.__dict__.update(fresh.__dict__)
+
+    # -- stepping -----------------------------------------------------------------------------------------
+
+    def advance_to(self, t_target: float) -> None:
+        """Step until time t_target, landing exactly on every constraint switch on the way."""
+        s = self.state
+        while s.t < t_target - 1e-12:
+            ahead = self._switches[self._switches > s.t + 1e-12]
+            boundary = min(t_target, float(ahead[0])) if ahead.size else t_target
+            count = max(1, math.ceil((boundary - s.t) / self.plan.step - 1e-9))
+            h = (boundary - s.t) / count
+            epoch = self.plan.constraints.epoch_at(s.t + 0.5 * h) if self.plan.constraints else None
+            for _ in range(count):
+                self._step(h, epoch)
+            s.t = boundary  # no drift from summing h
+
+    def step(self, h: float | None = None) -> None:
+        """One step of the plan's size (or h), not crossing a switch."""
+        self.advance_to(self.state.t + (h or self.plan.step))
+
+    def _step(self, h: float, epoch) -> None:
+        s = self.state
+        if self.procedural is not None:
+            self.procedural.step(s, h, epoch)
+        else:
+            self._integrate(self.dynamics.accelerations, s.t, h, (s.x, s.q, s.v, s.w), self._stages, epoch)
+        s.t += h
+        s.steps += 1
+        self._sync_kinematics()
+        self._check_finite()
+
+    def _sync_kinematics(self) -> None:
+        if self.plan.kinematics is not None:
+            s = self.state
+            evaluate_paths(self.plan.kinematics, s.t, s.x, s.q, s.v, s.w)
+
+    def _check_finite(self) -> None:
+        s = self.state
+        speed = max(np.abs(s.v).max(initial=0.0), np.abs(s.w).max(initial=0.0))
+        if np.isfinite(speed) and speed < RUNAWAY_SPEED and np.isfinite(s.x).all():
+            return
+        bad = ~(np.isfinite(s.x).all(axis=1) & np.isfinite(s.v).all(axis=1) & np.isfinite(s.w).all(axis=1))
+        bad |= np.maximum(np.abs(s.v).max(axis=1), np.abs(s.w).max(axis=1)) >= RUNAWAY_SPEED
+        name = self.plan.names[int(np.flatnonzero(bad)[0])] if bad.any() else "?"
+        raise NumericalError(s.t, s.steps, f"body `{name}`", "its velocity is no longer finite"
+                             if not np.isfinite(speed) else f"its speed passed {RUNAWAY_SPEED:g}")
+
+    def check_constraints(self) -> float:
+        """Constraint error now; a runaway error stops the run naming the constraint."""
+        error, row = self.constraint_errors()
+        if not np.isfinite(error) or error > RUNAWAY_CONSTRAINT_ERROR:
+            name = self.plan.constraints.names[self.plan.constraints.row_constraint[row]] if row >= 0 else "?"
+            raise NumericalError(self.state.t, self.state.steps, f"constraint `{name}`",
+                                 f"its error grew to {error:.3g} (m or rad)")
+        return error
