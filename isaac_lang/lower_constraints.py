@@ -115,12 +115,12 @@ class ConstraintLowerer:
         kind = scope.lookup("kinds", fn)
         if kind is not None:
             return self._kind(kind, args, tree, decl, scope)
+        if fn in ELEMENTS:
+            return self._element(fn, args, tree, scope, decl)
         builder = getattr(self, "_lib_" + fn, None) if fn in LIBRARY else None
         if builder is None:
             raise decl.lowerer.fail(f"unknown constraint `{fn}`", tree.children[0],
                                     did_you_mean(fn, LIBRARY + tuple(scope.visible("kinds"))))
-        if fn in ELEMENTS:
-            return self._element(fn, args, tree, scope, decl)
         return builder(args, tree, scope, decl)
 
     def _kind(self, kind, args, tree, decl, scope=None) -> list:

@@ -1,0 +1,107 @@
+"""`isaac run` and `isaac plan` against the output contract of ARCHITECTURE.md, and the embedding API."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from isaac_lang.cli import main
+from isaac_runtime.simulation import Simulation
+
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
+
+
+def test_run_writes_the_contracted_files(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["run", str(SCENES / "selfassembly.isaac"), "--out", str(out), "--until", "1.5"])
+    assert code == 0
+    assert sorted(p.name for p in out.iterdir()) == ["events.json", "ir.json", "report.json", "trajectory.npz"]
+    with np.load(out / "trajectory.npz", allow_pickle=False) as data:
+        T = len(data["time"])
+        assert list(data["bodies"]) == ["a", "b"]
+        assert data["position"].shape == (T, 2, 3) and data["orientation"].shape == (T, 2, 4)
+        assert data["linear_velocity"].shape == (T, 2, 3) and data["angular_velocity"].shape == (T, 2, 3)
+        assert data["constraint_error"].shape == (T,) and data["energy"].shape == (T,)
+        assert data["time"][-1] == pytest.approx(1.5)
+        assert np.allclose(np.diff(data["time"]), 0.01)
+    report = json.loads((out / "report.json").read_text())
+    for key in ("steps", "wall_time", "solver", "stages_run", "stages_skipped", "max_constraint_error",
+                "energy_drift", "warnings", "step"):
+        assert key in report
+    assert "constraints" in report["stages_run"] and "collisions" in report["stages_skipped"]
+    assert json.loads((out / "events.json").read_text()) == []
+    assert json.loads((out / "ir.json").read_text())["schema"] == "isaac-ir/1"
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary files left
+
+
+def test_run_options_override_the_scene(tmp_path):
+    out = tmp_path / "o"
+    assert main(["run", str(SCENES / "pendulum.isaac"), "--out", str(out), "--until", "0.2", "--step", "0.002",
+                 "--solver", "dynamics", "--set", "theta0=30deg"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["step"] == 0.002 and report["steps"] == 100
+    ir = json.loads((out / "ir.json").read_text())
+    assert ir["bodies"][0]["position"][0] == pytest.approx(np.sin(np.radians(30)))
+
+
+def test_blow_up_exits_2_with_a_message_and_keeps_the_trajectory(tmp_path, capsys):
+    scene = tmp_path / "bad.isaac"
+    scene.write_text("""scene bad {
+  time 0 s .. 5 s
+  solver dynamics { step 20 ms  stabilize 200 Hz }
+  body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) }
+  constraint hang nail(bob @ (-1, 0, 0), (0, 0, 0))
+}
+""")
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "numerical blow-up at t =" in err and "Traceback" not in err
+    assert (out / "trajectory.npz").exists()
+
+
+def test_plan_lists_stages(capsys):
+    assert main(["plan", str(SCENES / "pendulum.isaac")]) == 0
+    text = capsys.readouterr().out
+    assert "on  constraints" in text and "off collisions" in text and "off audio" in text
+    assert "rk4" in text
+
+
+def test_readme_command_runs_the_pendulum_without_sound_or_meshes(tmp_path):
+    # the command a newcomer runs; a scene without sound never imports soundfile, without meshes never fcl
+    code = ("import sys; from isaac_lang.cli import main; rc = main(['run', sys.argv[1], '--out', sys.argv[2], "
+            "'--until', '0.1']); assert 'soundfile' not in sys.modules and 'fcl' not in sys.modules; sys.exit(rc)")
+    done = subprocess.run([sys.executable, "-c", code, str(SCENES / "pendulum.isaac"), str(tmp_path)],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+
+
+def test_api_steps_and_takes_live_inputs():
+    sim = Simulation.from_text("""
+let length = 1 m
+scene api {
+  time 0 s .. 2 s
+  gravity (0, -9.81, 0)
+  body hand kinematic sphere { radius 2 cm  at (0, 1, 0) }
+  body bob sphere { radius 5 cm  mass 1 kg  at (length, 1, 0) }
+  constraint string point(bob @ (-length, 0, 0), hand @ (0, 0, 0))
+}""")
+    sim.advance_to(0.1)
+    assert sim.state.t == pytest.approx(0.1)
+    bob = sim.body("bob")
+    # drive the kinematic hand from outside: the bob follows (the string keeps its length)
+    sim.set_pose("hand", (0.5, 1.5, 0))
+    sim.advance_to(0.6)
+    distance = np.linalg.norm(sim.state.x[bob] - sim.state.x[sim.body("hand")])
+    assert distance == pytest.approx(1.0, abs=1e-4)
+    # a parameter changed mid-run re-plans the scene and keeps the state of the bodies
+    x_before = sim.state.x[bob].copy()
+    sim.set_parameter("length", "2 m")
+    assert sim.state.t == pytest.approx(0.6)
+    assert np.allclose(sim.state.x[bob], x_before)
+    with pytest.raises(ValueError):
+        sim.set_pose("bob", (0, 0, 0))
