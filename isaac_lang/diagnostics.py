@@ -68,6 +68,11 @@ class SourceCache:
     def add(self, name: str, text: str) -> None:
         self._lines[name] = text.splitlines()
 
+    def alias(self, name: str, other: str) -> None:
+        """Let `other` name the same text as `name` (a file as the user reached it, for printing)."""
+        if name in self._lines:
+            self._lines[other] = self._lines[name]
+
     def line(self, pos: SourcePos) -> str | None:
         lines = self._lines.get(pos.file)
         if lines is None or not (1 <= pos.line <= len(lines)):
@@ -85,8 +90,10 @@ class Reporter:
         self.diagnostics: list[Diagnostic] = []
 
     def error(self, message: str, pos: SourcePos | None, hint: str | None = None) -> None:
-        if len(self.diagnostics) < self.LIMIT:
-            self.diagnostics.append(Diagnostic(message, pos, hint))
+        diagnostic = Diagnostic(message, pos, hint)
+        # the same mistake met again (a part used twice, a loop's body) is reported once
+        if len(self.diagnostics) < self.LIMIT and diagnostic not in self.diagnostics:
+            self.diagnostics.append(diagnostic)
 
     def fatal(self, message: str, pos: SourcePos | None, hint: str | None = None) -> "SceneError":
         """Record an error and return the exception that stops the pass now."""

@@ -98,7 +98,9 @@ def _quat_from_axis_angle(axis, angle):
     axis = np.asarray(axis, dtype=float)
     unit = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
     half = 0.5 * np.asarray(angle, dtype=float)[..., None]
-    return np.concatenate(np.broadcast_arrays(np.cos(half), np.sin(half) * unit), axis=-1)
+    vector = np.sin(half) * unit  # (..., 3)
+    # q = (cos(angle/2), sin(angle/2) axis); the scalar part broadcast to (..., 1), not to (..., 3)
+    return np.concatenate([np.broadcast_to(np.cos(half), vector.shape[:-1] + (1,)), vector], axis=-1)
 
 
 def _quat(w, x, y, z):
@@ -271,6 +273,18 @@ def _interpolator(node: Keys):
 
 
 def _evaluate_keys(node: Keys, t):
+    value = _keys_inside(node, t)
+    if node.order == 0:
+        return value
+    # before the first key and after the last the value holds still: its derivatives are zero there
+    t = np.asarray(t, dtype=float)
+    still = (t < node.times[0]) | (t > node.times[-1]) | (len(node.times) == 1)
+    if not np.any(still):
+        return value
+    return np.where(still[..., None] if np.ndim(value) > t.ndim else still, 0.0, value)
+
+
+def _keys_inside(node: Keys, t):
     times = np.asarray(node.times, dtype=float)
     values = np.asarray(node.values, dtype=float)
     tt = np.clip(np.asarray(t, dtype=float), times[0], times[-1])
@@ -392,11 +406,34 @@ def fold(node: Expr) -> Expr:
     """Replace a subtree without variables or runtime signals by its value."""
     if isinstance(node, (Const, Str, Var, Keys)):
         return node
+    quick = _fold_plain(node)
+    if quick is not None:
+        return quick
     if free_vars(node) or _has_unknown_call(node):
         return node
     with np.errstate(all="ignore"):  # log(0), 0/0: a non-finite constant, which the lowering reports
         value = evaluate(node, {})
     return Const(to_tuple(value))
+
+
+# + - * / on plain floats: Python's arithmetic is the same IEEE double arithmetic as numpy's, without numpy's
+# overhead on three numbers (a zero divisor raises ZeroDivisionError, which the lowering reports)
+_PLAIN_OPS = {"add": float.__add__, "sub": float.__sub__, "mul": float.__mul__, "div": float.__truediv__}
+
+
+def _fold_plain(node: Expr) -> Const | None:
+    """The common cases of folding, without numpy: an operator on two numbers, a vector of numbers."""
+    if type(node) is Op:
+        args = node.args
+        if not all(type(a) is Const and type(a.value) is float for a in args):
+            return None
+        if node.op == "neg":
+            return Const(-args[0].value)
+        op = _PLAIN_OPS.get(node.op)
+        return Const(op(args[0].value, args[1].value)) if op else None
+    if type(node) is Vec and all(type(i) is Const and type(i.value) is float for i in node.items):
+        return Const(tuple(i.value for i in node.items))
+    return None
 
 
 def _has_unknown_call(node: Expr) -> bool:

@@ -12,7 +12,7 @@ from . import units as U
 from .diagnostics import Reporter, SceneError, SourcePos, did_you_mean
 from .expand import Decl, Expansion
 from .lower_constraints import ConstraintLowerer
-from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, ref_name
+from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, is_table, ref_name
 from .props import Props
 from .syntax import KEYWORDS
 
@@ -155,7 +155,8 @@ class SceneLowerer:
                 raise lowerer.fail(f"unknown solver `{plan}`", tree.children[0],
                                    did_you_mean(plan, ("dynamics", "procedural", "auto")) or
                                    "choose dynamics, procedural or auto")
-            props = Props(tree.children[1], SOLVER_PROPS, "the solver", lowerer, scope)
+            block = tree.children[1] if len(tree.children) > 1 else None  # `solver auto` needs no block
+            props = Props(block, SOLVER_PROPS, "the solver", lowerer, scope)
         step = props.scalar("step", U.TIME)
         if step is not None and step <= 0:
             raise props.lowerer.fail("the step must be positive", props.node("step"))
@@ -166,7 +167,7 @@ class SceneLowerer:
             stabilize_frequency=props.scalar("stabilize", U.FREQUENCY),
             damping_ratio=props.scalar("damping", U.DIMENSIONLESS, 1.0),
             linear_solver=props.word("linear", ("auto", "dense", "sparse", "tree"), "auto"),
-            substeps=props.integer("substeps", 8, minimum=1),
+            substeps=props.integer("substeps", 20, minimum=1),
             iterations=props.integer("iterations", 1, minimum=1),
             compliance=props.scalar("compliance", U.DIMENSIONLESS, 0.0),
         )
@@ -299,6 +300,9 @@ class SceneLowerer:
         if not props.has("orient"):
             return (1.0, 0.0, 0.0, 0.0)
         value = props.typed("orient", ExprContext(time=kinematic))
+        if is_table(value.node):
+            raise props.lowerer.fail("`orient` takes euler(ax, ay, az), axis_angle(axis, angle), quat(w, x, y, z)",
+                                     props.node("orient"))
         if value.size == 3:
             # a bare vector is Euler angles, degrees unless a unit says otherwise
             angles = value.node if value.dim == U.ANGLE else E.mul(value.node, E.Const(math.pi / 180.0))

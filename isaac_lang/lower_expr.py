@@ -134,7 +134,9 @@ class ExprLowerer:
             raise self.fail(self._misplaced(tree.data), tree)
         try:
             value = method(tree, scope, ctx)
-        except (ArithmeticError, ValueError) as error:  # folding constants: 1/0, 10^1000, sqrt of a vector...
+        except U.UnitError as error:  # e.g. sqrt(1 m)
+            raise self.fail(str(error), tree) from None
+        except (ArithmeticError, ValueError) as error:  # folding constants: 1/0, 10^1000...
             raise self.fail(f"this value cannot be computed ({error})", tree) from None
         if type(value.node) is E.Const and not _finite(value.node.value):
             raise self.fail("this value is not a finite number", tree, "check for a division by zero, log(0) "
@@ -171,13 +173,17 @@ class ExprLowerer:
     def _vector(self, tree, scope, ctx) -> Typed:
         items = [self.lower(child, scope, ctx) for child in tree.children]
         dim = None
+        # a table of constant rows of one size, as `modes ((440, 3, 1), (880, 5, 0.5))` is; else numbers
+        table = items[0].size and all(i.size == items[0].size and type(i.node) is E.Const for i in items)
         for item in items:
-            if item.size:
-                raise self.fail("a vector's components must be numbers", item.pos and tree)
+            if item.size and not table:
+                raise self.fail("a vector's components must be numbers", tree)
             try:
                 dim = U.unify(dim, item.dim)
             except U.UnitError as error:
                 raise self.fail(f"vector components disagree: {error}", tree)
+        if table:  # rows as written (E.Vec stacks its items along the last axis: it would transpose them)
+            return Typed(E.Const(tuple(i.node.value for i in items)), dim, self.pos(tree))
         return Typed(E.fold(E.Vec(tuple(i.node for i in items))), dim, self.pos(tree))
 
     def _neg(self, tree, scope, ctx) -> Typed:
@@ -284,7 +290,8 @@ class ExprLowerer:
         sizes = [a.size for a in args]
         wanted = VECTOR_ARGUMENTS.get(fn)
         if wanted is not None:
-            if any((s == 0) if w is None else (s != w) for s, w in zip(sizes, wanted)) or (fn == "dot" and sizes[0] != sizes[1]):
+            wrong = any((s == 0) if w is None else (s != w) for s, w in zip(sizes, wanted))
+            if wrong or (fn == "dot" and sizes[0] != sizes[1]):
                 usage = ", ".join("a number" if w == 0 else f"a {w}-vector" if w else "a vector" for w in wanted)
                 raise self.fail(f"`{fn}` takes ({usage})", tree)
         elif len({s for s in sizes if s}) > 1:
@@ -371,7 +378,7 @@ class ExprLowerer:
         A bare number is SI in a vector slot, degrees in an angle slot, and an error in any other slot with a
         unit unless `bare_ok` (e.g. a frame rate).
         """
-        if value.size != size:
+        if value.size != size or (size and is_table(value.node)):
             shape = f"a {size}-vector" if size else "a single number"
             raise self.fail(f"{what} wants {shape}", node)
         if value.dim is None:
@@ -398,6 +405,12 @@ class ExprLowerer:
 # argument sizes of the vector functions: 0 a number, k a k-vector, None any vector (size >= 1)
 VECTOR_ARGUMENTS = {"length": (None,), "normalize": (None,), "dot": (None, None), "cross": (3, 3),
                     "euler": (0, 0, 0), "axis_angle": (3, 0), "quat": (0, 0, 0, 0)}
+
+
+def is_table(node: E.Expr) -> bool:
+    """A constant whose rows are vectors (`modes`), which no vector slot takes."""
+    return type(node) is E.Const and type(node.value) is tuple and bool(node.value) \
+        and type(node.value[0]) is tuple
 
 
 def _finite(value) -> bool:

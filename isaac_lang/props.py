@@ -86,6 +86,8 @@ class Props:
             return default
         value = self.node(name)
         text = _bare_name(value)
+        if text is None and not choices:
+            raise self.lowerer.fail(f"`{name}` takes a name", value)
         if text is None or (choices and text not in choices):
             raise self.lowerer.fail(f"`{name}` must be one of: {', '.join(choices)}", value,
                                     did_you_mean(text or "", choices) if text else None)

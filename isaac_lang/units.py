@@ -6,6 +6,7 @@ velocity in Hz (cycles per second) is not silently taken for rad/s. A bare numbe
 """
 from __future__ import annotations
 
+import functools
 import math
 import re
 
@@ -104,6 +105,7 @@ class UnitError(ValueError):
     pass
 
 
+@functools.lru_cache(maxsize=1024)
 def parse_unit(text: str) -> tuple[float, Dim]:
     """'kg/m3' -> (1.0, DENSITY); 'N*s/m' -> (1.0, DAMPING). Raises UnitError for an unknown unit."""
     factor, dim = 1.0, [0, 0, 0, 0]

@@ -19,7 +19,11 @@ from isaac_lang.expand import Limits
 from isaac_lang.load import load_text
 
 SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
-SCENES = {path.name: path.read_text(encoding="utf-8") for path in sorted(SCENES_DIR.glob("*.isaac"))}
+DATA_DIR = Path(__file__).resolve().parent / "data"
+# the seeds: the example scenes and the test fixtures (includes, parts, every construct), by path
+SEEDS = {path: path.read_text(encoding="utf-8")
+         for path in sorted(SCENES_DIR.glob("*.isaac")) + sorted(DATA_DIR.glob("*.isaac"))}
+LINES = sorted({line for text in SEEDS.values() for line in text.splitlines() if line.strip()})
 
 # words, numbers (with exponents), `..`, strings, comments, whitespace, any other single character
 TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(?:\{[^}\s]*\}[A-Za-z0-9_]*)*|\d+(?:\.\d+)?(?:[eE][+-]?\d+)?|\.\.|"[^"\n]*"'
@@ -41,12 +45,12 @@ def tokens(text: str) -> list:
 
 @st.composite
 def mutated_scene(draw):
-    name = draw(st.sampled_from(sorted(SCENES)))
-    toks = tokens(SCENES[name])
+    path = draw(st.sampled_from(sorted(SEEDS)))
+    toks = tokens(SEEDS[path])
     for _ in range(draw(st.integers(1, 4))):
         if not toks:
             break
-        kind = draw(st.sampled_from(["delete", "duplicate", "swap", "truncate", "insert", "replace"]))
+        kind = draw(st.sampled_from(["delete", "duplicate", "swap", "truncate", "insert", "replace", "splice"]))
         i = draw(st.integers(0, len(toks) - 1))
         if kind == "delete":
             del toks[i]
@@ -57,6 +61,8 @@ def mutated_scene(draw):
             toks[i], toks[j] = toks[j], toks[i]
         elif kind == "truncate":
             toks = toks[:i]
+        elif kind == "splice":  # a line of another scene, dropped anywhere
+            toks.insert(i, "\n" + draw(st.sampled_from(LINES)) + "\n")
         else:
             word = draw(st.sampled_from(INSERTS) | st.text(max_size=3))
             spaced = draw(st.booleans())
@@ -65,13 +71,13 @@ def mutated_scene(draw):
                 toks.insert(i, piece)
             else:
                 toks[i] = piece
-    return name, "".join(toks)
+    return path, "".join(toks)
 
 
-def check_outcome(name: str, text: str) -> None:
+def check_outcome(path: Path, text: str) -> None:
     """Either a scene whose IR prints, or a SceneError with positioned diagnostics; nothing else."""
     try:
-        loaded = load_text(text, name, folder=SCENES_DIR, limits=Limits(max_items=2000))
+        loaded = load_text(text, path.name, folder=path.parent, limits=Limits(max_items=2000))
     except SceneError as error:
         assert error.diagnostics, "a SceneError without diagnostics"
         for diagnostic in error.diagnostics:
@@ -98,7 +104,7 @@ def test_mutated_scenes_load_or_report_at_scale(case):
 
 
 def test_the_tokenizer_round_trips():
-    for text in SCENES.values():
+    for text in SEEDS.values():
         assert "".join(tokens(text)) == text
 
 
