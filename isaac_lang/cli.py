@@ -170,10 +170,10 @@ def cmd_check(args, sources) -> int:
 
 
 def cmd_plan(args, sources) -> int:
-    from isaac_runtime.plan import compile_plan
+    from isaac_runtime.plan import PlanOptions, compile_plan
 
     loaded = _load(args, sources)
-    plan = compile_plan(loaded.scene)
+    plan = compile_plan(loaded.scene, PlanOptions(folder=Path(args.scene).parent))
     print(plan.describe())
     return EXIT_OK
 
@@ -187,7 +187,7 @@ def cmd_run(args, sources) -> int:
         open_microphone(args.mic or None)
     out = Path(args.out) if args.out else Path("out") / loaded.scene.name
     options = RunOptions(solver=args.solver, step=args.step, until=args.until,
-                         progress=not args.quiet and sys.stderr.isatty())
+                         progress=not args.quiet and sys.stderr.isatty(), folder=Path(args.scene).parent)
     code = run_scene(loaded.scene, out, options, scene_path=Path(args.scene))
     if args.viewer:
         _write_viewer(loaded.scene, out, Path(args.scene).parent)

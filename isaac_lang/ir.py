@@ -40,6 +40,7 @@ class SolverOptions:
     substeps: int  # procedural plan
     iterations: int  # procedural plan
     compliance: float  # procedural plan, m/N (0 = rigid)
+    projection: str = "auto"  # procedural plan: all rows at once (direct), colour sweeps (gauss-seidel), or auto
 
 
 @dataclass(frozen=True)

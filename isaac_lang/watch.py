@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .diagnostics import SceneError, SourceCache
+from .diagnostics import Diagnostic, SceneError, SourceCache
 
 # seconds of stepping (after planning) before the first frames are shown: the motion has begun, the wait is short
 FIRST_RESULT = 0.2
@@ -63,8 +63,12 @@ class Job:
     saved_at: float  # wall clock (time.time) of the save that started it
     folder: Path
     out: Path
+    sources: SourceCache  # the text the scene was loaded from (for diagnostics found later)
     cancel: threading.Event = field(default_factory=threading.Event)
     cancel_reason: str = ""
+    state: str = "running"  # then complete or failed (a numerical blow-up)
+    message: str = ""
+    failed: str | None = None  # the blow-up's message
     first_frame: float | None = None  # perf_counter when the first frame was recorded (the plan is made)
     shown_at: float | None = None  # perf_counter of the last showing
     first_latency: float | None = None
@@ -93,7 +97,7 @@ class Watch:
         # turns a SceneError and the sources it was read from into the text to print
         self.format_error = format_error or (lambda error, sources: error.format(sources))
         self.files = {self.path.resolve()}  # what the last load read, plus files the scene names
-        self.good = None  # (IR JSON, Job) of the last valid scene
+        self.good_ir = None  # canonical IR JSON of the last valid scene (the one self.job runs)
         self.last_ok = True  # whether the last load was valid
         self.count = 0
         self.job: Job | None = None
@@ -149,10 +153,8 @@ class Watch:
 
         sources = RecordingSources(self.folder)
         try:
-            if not self.path.is_file():
-                from .cli import _usage_diagnostic
-
-                raise SceneError([_usage_diagnostic(f"no such scene file: {self.path}")])
+            if not self.path.is_file():  # between the two halves of a save by rename, or deleted
+                raise SceneError([Diagnostic(f"no such scene file: {self.path}", None)])
             loaded = load_scene(self.path, self.options.overrides, self.options.limits, sources)
         except SceneError as error:
             self.files = sources.files | self.files
@@ -164,16 +166,18 @@ class Watch:
         for warning in loaded.warnings:
             self.say(f"warning: {warning}")
         canonical = ir.to_json(loaded.scene)
-        if self.good is not None and self.good[0] == canonical and self.job is not None:
+        if canonical == self.good_ir and self.job is not None:
             self.say(f"{what}: no change to the scene (same IR); result #{self.job.n} stays")
-            if self.server:
-                self.server.set_status(diagnostic=None)
+            if self.server:  # the diagnostic of an edit in between goes; the result's own status comes back
+                self.server.set_status(state=self.job.state, message=self.job.message, diagnostic=self.job.failed)
             return
         self.stop_job("a newer save replaces it")
         self.count += 1
         out = self.options.out or Path("out") / loaded.scene.name
-        job = Job(self.count, loaded.scene, saved_at, self.folder, out)
-        self.good = (canonical, job)
+        job = Job(self.count, loaded.scene, saved_at, self.folder, out, sources)
+        self.good_ir = canonical
+        if self.server:
+            self.server.set_status(state="running", message=f"result #{job.n}: starting", diagnostic=None)
         self.say(f"{what}: result #{job.n}: running {loaded.scene.name} "
                  f"({len(loaded.scene.bodies)} bodies, {loaded.scene.time.start:g} s .. {loaded.scene.time.end:g} s)")
         self.start_job(job)
@@ -210,6 +214,8 @@ class Watch:
             self._finish(job, result)
         except Superseded:
             self.say(f"result #{job.n} stopped: {job.cancel_reason}")
+        except SceneError as error:  # found by the planner: as a load's error, but the old result is gone
+            self.job_error(job, error)
         except Exception as error:  # a bug in the tool: say so, keep watching
             import traceback
 
@@ -217,6 +223,15 @@ class Watch:
                 traceback.print_exc(file=sys.stderr)
             self.say(f"result #{job.n}: internal error ({type(error).__name__}: {error}); this is a bug in isaac. "
                      f"Still watching.")
+
+    def job_error(self, job: Job, error: SceneError) -> None:
+        text = self.format_error(error, job.sources)
+        with self._print_lock:
+            print(text, file=sys.stderr, flush=True)
+        self.say(f"result #{job.n}: scene error found while planning; fix the scene and save")
+        job.state, job.message, job.failed = "error", f"result #{job.n}: scene error", text
+        if self.server:
+            self.server.set_status(state="error", diagnostic=text, message=job.message)
 
     def _on_frame(self, job: Job, recorder) -> None:
         """Called after every recorded frame: stop when superseded; show the frames so far when it is time."""
@@ -246,8 +261,9 @@ class Watch:
         latency = time.time() - job.saved_at
         state = "failed" if failed else ("complete" if complete else "running")
         message = f"result #{job.n}: {note or state}"
+        job.state, job.message, job.failed = state, message, failed or None
         if self.server:
-            self.server.publish(data, state=state, message=message, diagnostic=failed or None)
+            self.server.publish(data, state=state, message=message, diagnostic=job.failed)
         job.shown_at = time.perf_counter()
         if job.first_latency is None:
             job.first_latency = latency

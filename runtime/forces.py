@@ -43,6 +43,7 @@ class ForcePlan:
     springs: Springs | None
     loads: Loads | None
     gyroscopic: np.ndarray | None  # indices of dynamic bodies with unequal principal moments
+    wind: object = None  # runtime.wind.WindPlan: aerodynamic drag, when the scene has winds and bodies feel them
 
     def stages(self) -> dict:
         return {"gravity": self.weight is not None, "springs": self.springs is not None,
@@ -101,6 +102,8 @@ def apply_forces(plan: ForcePlan, x, v, w, R, t, inertia_world, force_out, torqu
         _apply_springs(plan.springs, x, v, w, R, force_out, torque_out)
     if plan.loads is not None:
         _apply_loads(plan.loads, x, R, t, force_out, torque_out)
+    if plan.wind is not None:
+        plan.wind.apply(x, v, w, R, t, force_out, torque_out)
     if plan.gyroscopic is not None:
         k = plan.gyroscopic
         # tau -= w x (I w)

@@ -21,8 +21,11 @@ from .kinematics import KinematicPaths, compile_kinematics
 DEFAULT_STEP = 1e-3
 # the procedural plan's default step: one display frame
 DEFAULT_PROCEDURAL_STEP = 1.0 / 60.0
-# `auto` picks the procedural plan above this many dynamic bodies (docs/solver.md)
+# `auto` picks the procedural plan above this many dynamic bodies (docs/procedural.md)
 AUTO_PROCEDURAL_BODIES = 200
+# ... or for steps this long: beyond 5 ms the dynamics plan's joints open past 1 mm on the chain, and at 1/60 s
+# it blows up, while the procedural plan holds them to 1e-6 m (benchmarks/bench_procedural.py)
+AUTO_PROCEDURAL_STEP = 5e-3
 
 
 @dataclass
@@ -30,6 +33,7 @@ class PlanOptions:
     solver: str | None = None  # overrides the scene's plan
     step: float | None = None  # overrides the scene's step
     until: float | None = None
+    folder: object = None  # the scene's folder: recordings and meshes the scene names are found from here
 
 
 @dataclass
@@ -56,6 +60,10 @@ class Plan:
     constraints: ConstraintPlan | None
     kinematics: KinematicPaths | None
     gravity: np.ndarray
+    folder: object = None  # the scene's folder (Path), where assets are looked up; None: the working directory
+    # optional stages, each built only when the scene uses it (and its module imported only then)
+    collisions: object = None  # runtime.collide: pairs that can touch, detection and impulses
+    audio: object = None  # runtime.audio: the sound graph
     warnings: list = field(default_factory=list)
 
     @property
@@ -67,9 +75,9 @@ class Plan:
         stages = {"kinematic paths": self.kinematics is not None}
         stages.update(self.forces.stages())
         stages["constraints"] = self.constraints is not None
-        stages["collisions"] = False  # no collidable pairs are handled yet (collision issue)
-        stages["wind"] = False
-        stages["audio"] = False
+        stages["collisions"] = self.collisions is not None
+        stages["wind"] = self.forces.wind is not None
+        stages["audio"] = self.audio is not None
         return stages
 
     def describe(self) -> str:
@@ -83,6 +91,9 @@ class Plan:
             for epoch in c.epochs:
                 lines.append(f"  {epoch.start:g} s .. {epoch.end:g} s: {len(epoch.active)} active rows, "
                              f"linear solver {epoch.solver if epoch.solver != 'pending' else 'chosen at first use'}")
+        for stage in (self.collisions, self.forces.wind, self.audio):
+            if stage is not None and hasattr(stage, "describe"):
+                lines.append(stage.describe())
         lines.append("stages:")
         for name, on in self.stages().items():
             lines.append(f"  {'on ' if on else 'off'} {name}")
@@ -107,9 +118,34 @@ def compile_plan(scene: ir.Scene, options: PlanOptions | None = None) -> Plan:
     constraints = compile_constraints(scene, step, x0, q0) if scene.constraints else None
     forces = compile_forces(scene, bodies["mass"], bodies["dynamic"], bodies["inertia_body"], x0, q0)
     frames = _frame_times(scene.time.start, end, scene.time.frame_rate)
-    return Plan(scene=scene, solver=solver, integrator=scene.solver.integrator, step=step, step_reason=reason,
+    warnings = []
+    if step > 1.0 / scene.time.frame_rate + 1e-12:
+        warnings.append(f"the step ({step:g} s) is longer than a frame; steps are cut at every frame, so the "
+                        f"effective step is {1.0 / scene.time.frame_rate:g} s (lower `frames` for longer steps)")
+        step, reason = 1.0 / scene.time.frame_rate, reason + ", cut to one frame"
+    integrator = scene.solver.integrator if solver == "dynamics" else "xpbd"
+    plan = Plan(scene=scene, solver=solver, integrator=integrator, step=step, step_reason=reason,
                 start=scene.time.start, end=end, frame_times=frames, forces=forces, constraints=constraints,
-                kinematics=kinematics, gravity=np.asarray(scene.gravity, float), **bodies)
+                kinematics=kinematics, gravity=np.asarray(scene.gravity, float), folder=options.folder, warnings=warnings, **bodies)
+    _optional_stages(scene, plan)
+    return plan
+
+
+def _optional_stages(scene: ir.Scene, plan: Plan) -> None:
+    """Collisions, wind and audio: a cheap look at the IR first, so an unused stage is never even imported."""
+    collidable = [b for b in scene.bodies if b.collide]
+    if len(collidable) >= 2 and any(b.motion == "dynamic" for b in collidable):
+        from .collide import compile_collisions
+
+        plan.collisions = compile_collisions(scene, plan)  # None when every pair is excluded
+    if scene.winds and any(b.wind.enabled for b in scene.bodies):
+        from .wind import compile_wind
+
+        plan.forces.wind = compile_wind(scene, plan)
+    if scene.sounds:
+        from .audio import compile_audio
+
+        plan.audio = compile_audio(scene, plan)
 
 
 def _choose_solver(scene: ir.Scene, options: PlanOptions) -> str:
@@ -117,13 +153,15 @@ def _choose_solver(scene: ir.Scene, options: PlanOptions) -> str:
     if plan != "auto":
         return plan
     dynamic = sum(1 for b in scene.bodies if b.motion == "dynamic")
-    return "procedural" if dynamic > AUTO_PROCEDURAL_BODIES else "dynamics"
+    step = options.step or scene.solver.step or 0.0
+    return "procedural" if dynamic > AUTO_PROCEDURAL_BODIES or step >= AUTO_PROCEDURAL_STEP else "dynamics"
 
 
 def _choose_step(scene: ir.Scene, solver: str, options: PlanOptions) -> tuple:
     if options.step is not None:
         return options.step, "--step"
-    if scene.solver.step is not None:
+    # a step written for one plan does not carry over when the run switches to the other
+    if scene.solver.step is not None and (scene.solver.plan == solver or scene.solver.plan == "auto"):
         return scene.solver.step, "set by the scene"
     frame = 1.0 / scene.time.frame_rate
     target = DEFAULT_PROCEDURAL_STEP if solver == "procedural" else DEFAULT_STEP

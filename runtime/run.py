@@ -24,6 +24,7 @@ class RunOptions:
     step: float | None = None
     until: float | None = None
     progress: bool = False
+    folder: object = None  # the scene's folder, for the assets it names
 
 
 @dataclass
@@ -32,14 +33,16 @@ class RunResult:
     recorder: Recorder
     report: dict
     error: NumericalError | None
+    audio: object = None  # runtime.audio.AudioRun: the motion recorded for the sounds (scenes with sounds)
 
 
 def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     """Plan the scene and run it to the end, recording every frame (the in-process form of `isaac run`)."""
     options = options or RunOptions()
     started = time.perf_counter()
-    plan = compile_plan(scene, PlanOptions(options.solver, options.step, options.until))
+    plan = compile_plan(scene, PlanOptions(options.solver, options.step, options.until, options.folder))
     sim = Simulation(plan)
+    audio = plan.audio.record(sim) if plan.audio is not None else None
     recorder = Recorder(plan.frame_times, plan.names)
     error = None
     energy0 = sim.energy()
@@ -52,7 +55,7 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
         except NumericalError as failure:
             error = failure
     report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
-    return RunResult(sim, recorder, report, error)
+    return RunResult(sim, recorder, report, error, audio)
 
 
 def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path | None = None) -> int:
@@ -60,6 +63,8 @@ def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path 
     write_npz(out / "trajectory.npz", result.recorder.arrays())
     write_json(out / "events.json", result.simulation.events)
     write_json(out / "ir.json", ir.to_data(scene))
+    if result.audio is not None:
+        result.report["audio"] = result.audio.write(out / "audio.wav", result.report["wall_time"])
     write_json(out / "report.json", result.report)
     if result.error is not None:
         where = f"{scene_path}: " if scene_path else ""

@@ -62,11 +62,15 @@ class Simulation:
             from .procedural_plan import ProceduralStepper
 
             self.procedural = ProceduralStepper(plan, self.dynamics)
-        self._integrate = INTEGRATORS[plan.integrator]
+        self._integrate = INTEGRATORS.get(plan.integrator)  # None for the procedural plan: it integrates itself
         self._stages = Stages(plan.n)
         self._a = np.zeros((plan.n, 3))
         self._alpha = np.zeros((plan.n, 3))
         self._switches = np.array(plan.constraints.switch_times() if plan.constraints else [])
+        # collisions: detection and impulses after every step (runtime.collide), built only when the plan has them
+        self.collider = plan.collisions.start(self) if plan.collisions is not None else None
+        # observers called after every step, e.g. the audio stage recording motion signals
+        self.observers: list = []
         self._sync_kinematics()
 
     # -- construction -------------------------------------------------------------------------------------
@@ -76,7 +80,8 @@ class Simulation:
         from isaac_lang.load import load_scene
 
         scene = load_scene(Path(path), overrides).scene
-        return cls(compile_plan(scene, PlanOptions(**options)), {"path": Path(path), "overrides": overrides or {},
+        plan = compile_plan(scene, PlanOptions(folder=Path(path).parent, **options))
+        return cls(plan, {"path": Path(path), "overrides": overrides or {},
                                                                   "options": options})
 
     @classmethod
@@ -84,7 +89,8 @@ class Simulation:
         from isaac_lang.load import load_text
 
         scene = load_text(text, overrides=overrides, folder=folder).scene
-        return cls(compile_plan(scene, PlanOptions(**options)), {"text": text, "folder": folder,
+        plan = compile_plan(scene, PlanOptions(folder=Path(folder), **options))
+        return cls(plan, {"text": text, "folder": folder,
                                                                   "overrides": overrides or {}, "options": options})
 
     # -- queries ------------------------------------------------------------------------------------------
@@ -174,6 +180,8 @@ class Simulation:
 
     def _step(self, h: float, epoch) -> None:
         s = self.state
+        if self.collider is not None:
+            self.collider.before_step(h, epoch)
         if self.procedural is not None:
             self.procedural.step(s, h, epoch)
         else:
@@ -181,7 +189,11 @@ class Simulation:
         s.t += h
         s.steps += 1
         self._sync_kinematics()
+        if self.collider is not None:
+            self.collider.after_step(h, epoch)
         self._check_finite()
+        for observe in self.observers:
+            observe(self, h)
 
     def _sync_kinematics(self) -> None:
         if self.plan.kinematics is not None:

@@ -1,28 +1,35 @@
 """Position-level projections of every constraint family: the constraint stage of the procedural (XPBD) plan.
 
-Each `project_<family>(fam, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *, x_prev, q_prev)`
-moves the bodies of the instances `idx` of one family so that their constraints hold again, mass-weighted,
-updating x (n,3) and q (n,4) in place and accumulating the XPBD multipliers in lam ((k,3) for point families,
-(k,) otherwise; compliance (k,)). The instances of idx must share no dynamic body (one colour of
+`project_<family>(fam, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *, before=None)` moves the
+bodies of the instances idx of one family so that their constraints hold again, mass-weighted, updating x (n,3)
+and q (n,4) in place and accumulating the XPBD multipliers lam ((k,3) for the point families, (k,) otherwise;
+compliance (k,), h the substep). The instances of idx must share no dynamic body (one colour of
 `colour_instances`): a kernel is vectorized over them, and Gauss-Seidel runs across colours.
+`before` is the Frame of the start of the substep (x_prev, q_prev and what follows from them).
 
 XPBD (Mueller et al. 2020). A row C(x, q) has gradient blocks per body slot s in {a, b}: linear l_s
 (dC = l_s . dx_s) and angular g_s (dC = g_s . dphi_s for a small world rotation, q_s += 0.5 (0, dphi_s) q_s).
-With alpha~ = alpha / h^2 (h the substep) and d_s = (ld_s, gd_s) the direction the correction is applied along:
+With alpha~ = alpha / h^2 and (ld_s, gd_s) the direction the correction is applied along:
 
     dlam   = (-C - alpha~ lam) / (sum_s  l_s . ld_s / m_s + g_s^T I_s^-1 gd_s  + alpha~)
     dx_s   = dlam ld_s / m_s          dphi_s = dlam I_s^-1 gd_s          lam += dlam
 
-For a point constraint along unit n at arms r: l = n, g = r x n, and with d = (l, g) the denominator is the
-generalized inverse mass w = 1/m + (r x n)^T I^-1 (r x n) of each body.
+For a point constraint along unit n at arms r: l = n, g = r x n, and with (ld, gd) = (l, g) the denominator is
+the generalized inverse mass w = 1/m + (r x n)^T I^-1 (r x n) of each body.
 
-Direction (a decision): Mueller et al. take d = the gradient at the current iterate, which damps (a 60 degree
-pendulum at h = 1/60 with 20 substeps loses 0.4 % of its period per swing). Given x_prev, q_prev (the pose at
-the start of the substep), we take d = the gradient there, as SHAKE does (Ryckaert, Ciccotti, Berendsen 1977):
-the constraint force acts along the constraint normal of the start of the step, which makes the substep a
-symplectic Verlet step for point masses and planar bodies, so energy does not drift and the pendulum's period
-is kept to 1e-5. Where the two gradients disagree (a body turned by more than about 60 degrees within one
-substep) the current gradient is used. Gear families are on increments, and use the current gradient.
+Direction (a decision). Mueller et al. take (ld, gd) = the gradient now, which damps: a 60 degree pendulum at
+h = 1/60 with 20 substeps swings 1.6e-3 short on its first period and 0.2 % shorter on each one after. Given
+`before`, we take the gradient and the world inverse inertia of the start of the substep instead, as SHAKE does
+(Ryckaert, Ciccotti, Berendsen 1977): the constraint force acts along the constraint normal of the start of the
+step, which makes a substep a symplectic Verlet step for point masses and planar bodies, with no energy drift:
+the same pendulum keeps its period to 3e-6 with 10 substeps. SHAKE's direction is only stable while the bodies
+turn little within a substep, so the solver clears `before.use_directions` when one turns by more than
+procedural.SHAKE_MAX_TURN, and the kernels then take the gradient now (a closest-point projection in the mass
+metric: dissipative, stable at any step); where the two gradients disagree for one row (its effective mass
+along the old one below MIN_DIRECTION_ALIGNMENT of the new) the current gradient is used too. Without
+`before`, a kernel is plain XPBD (current gradient and inertia); the gear families need `before`.
+The kernels here are Gauss-Seidel (one colour after another); procedural_direct.py projects all rows at once.
+
 WORLD (-1) slots and bodies with zero inverse mass (static, kinematic) take part with w = 0 and never move.
 """
 from __future__ import annotations
@@ -47,6 +54,35 @@ _CONJ = np.array([1.0, -1.0, -1.0, -1.0])
 _SKEW = np.zeros((3, 9))  # skew(v).reshape(9) = v @ _SKEW, [v]x = [[0,-z,y],[z,0,-x],[-y,x,0]]
 _SKEW[2, 1], _SKEW[1, 2], _SKEW[2, 3], _SKEW[0, 5], _SKEW[1, 6], _SKEW[0, 7] = -1, 1, 1, -1, -1, 1
 _P1, _P2 = np.array([1, 2, 0]), np.array([2, 0, 1])
+_CROSS_A, _CROSS_B = np.array([1, 2, 0, 2, 0, 1]), np.array([2, 0, 1, 1, 2, 0])
+
+
+def _quadratic_forms():
+    """Constant tensors that make a rotation matrix and a Hamilton product one matrix product each:
+    R(q).reshape(9) = (q q^T).reshape(16) @ ROTATION, (p q).reshape(4) = (p q^T).reshape(16) @ PRODUCT."""
+    rotation, product = np.zeros((4, 4, 9)), np.zeros((4, 4, 4))
+    w, x, y, z = range(4)
+    # R = [[w2+x2-y2-z2, 2(xy-wz), 2(xz+wy)], [2(xy+wz), w2-x2+y2-z2, 2(yz-wx)], [2(xz-wy), 2(yz+wx), w2-x2-y2+z2]]
+    terms = {0: [(w, w, 1), (x, x, 1), (y, y, -1), (z, z, -1)], 1: [(x, y, 2), (w, z, -2)],
+             2: [(x, z, 2), (w, y, 2)], 3: [(x, y, 2), (w, z, 2)], 4: [(w, w, 1), (x, x, -1), (y, y, 1), (z, z, -1)],
+             5: [(y, z, 2), (w, x, -2)], 6: [(x, z, 2), (w, y, -2)], 7: [(y, z, 2), (w, x, 2)],
+             8: [(w, w, 1), (x, x, -1), (y, y, -1), (z, z, 1)]}
+    for k, entries in terms.items():
+        for i, j, c in entries:
+            rotation[i, j, k] += c
+    # (p0 q0 - pv . qv, p0 qv + q0 pv + pv x qv)
+    for i in range(4):
+        for j in range(4):
+            if i == 0 or j == 0:
+                product[i, j, i + j] = 1.0
+            elif i == j:
+                product[i, j, 0] = -1.0
+            else:
+                product[i, j, 6 - i - j] = 1.0 if (i, j) in ((1, 2), (2, 3), (3, 1)) else -1.0
+    return rotation.reshape(16, 9), product.reshape(16, 4)
+
+
+_ROTATION, _PRODUCT = _quadratic_forms()
 
 
 def skew(v):
@@ -56,7 +92,8 @@ def skew(v):
 
 def cross(a, b):
     """a x b for (k,3) stacks."""
-    return a.take(_P1, axis=1) * b.take(_P2, axis=1) - a.take(_P2, axis=1) * b.take(_P1, axis=1)
+    p = a.take(_CROSS_A, axis=1) * b.take(_CROSS_B, axis=1)
+    return p[:, :3] - p[:, 3:]
 
 
 def dot(a, b):
@@ -68,28 +105,48 @@ def matvec(M, v):
 
 
 def rotation_matrix(q):
-    """R (k,3,3) of unit quaternions (k,4): R = I + 2 w [v]x + 2 [v]x^2."""
-    S = skew(q[:, 1:])
-    return _EYE + 2.0 * (q[:, :1, None] * S + S @ S)
+    """R (k,3,3) of unit quaternions (k,4): R = I + 2 w [v]x + 2 [v]x^2, as a quadratic form in q."""
+    return ((q[:, :, None] * q[:, None, :]).reshape(-1, 16) @ _ROTATION).reshape(-1, 3, 3)
 
 
 def quat_mul(p, q):
     """Hamilton product of (k,4) stacks: (p0 q0 - pv . qv, p0 qv + q0 pv + pv x qv)."""
-    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
-    out[:, 0] = p[:, 0] * q[:, 0] - dot(p[:, 1:], q[:, 1:])
-    out[:, 1:] = p[:, :1] * q[:, 1:] + q[:, :1] * p[:, 1:] + cross(p[:, 1:], q[:, 1:])
-    return out
+    return (p[:, :, None] * q[:, None, :]).reshape(-1, 16) @ _PRODUCT
 
 
 def quat_conj(q):
     return q * _CONJ
 
 
+def normalized(q):
+    return q / np.sqrt(dot(q, q))[:, None]
+
+
 def turn_since(q, q_prev):
-    """(s (k,), v (k,3)) of dq = q q_prev^-1, sign fixed to s >= 0: the turn a body made since q_prev."""
-    dq = quat_mul(q, quat_conj(q_prev))
-    dq *= np.where(dq[:, :1] < 0.0, -1.0, 1.0)
-    return dq[:, 0], dq[:, 1:]
+    """The turn each body made since q_prev, theta (k,3) = 2 vec(dq) / dq_w with dq = q q_prev^-1: the Cayley
+    map's inverse, a rotation vector of length 2 tan(angle / 2) (= the angle to O(angle^3)).
+
+    It is the exact inverse of `turn_by` (q' = (1, hs w / 2) q, normalized), so a body spinning freely at w keeps
+    w = theta / hs exactly (Mueller et al.'s 2 vec(dq) / hs would lose (w hs)^2 / 8 of it on every substep),
+    and neither needs a sine, a cosine or an arctangent."""
+    dq = quat_mul(q, q_prev * _CONJ)
+    return 2.0 * dq[:, 1:] / dq[:, :1]
+
+
+def turn_by(q, theta):
+    """q turned by the rotation vector theta (k,3) in the Cayley map: (1, theta / 2) q, normalized (turn_since's
+    inverse). For a small correction theta = dphi it is the first-order update q + 0.5 (0, dphi) q, normalized."""
+    half = np.empty((len(theta), 4))
+    half[:, 0] = 1.0
+    half[:, 1:] = 0.5 * theta
+    return normalized(quat_mul(half, q))
+
+
+def turn_jacobian_t(theta, u):
+    """(d theta / d phi)^T u for theta = turn_since(q, q_prev) and q turned by a small world rotation dphi:
+    theta' = theta + (I - [theta]x / 2 + theta theta^T / 4) dphi + O(dphi^2), so d(theta . u) = dphi . g with
+    g = u + theta x u / 2 + theta (theta . u) / 4."""
+    return u + 0.5 * cross(theta, u) + (0.25 * dot(theta, u))[:, None] * theta
 
 
 def _rows(a, idx):
@@ -108,41 +165,62 @@ class Frame:
     """Every body's pose at the start of the substep, built once per substep, plus one last row for the world
     (identity pose, no mobility), so that WORLD = -1 indexes it.
 
-    x (n+1,3); q (n+1,4); R (n+1,3,3); inv_I (n+1,3,3) world inverse inertia R I_b^-1 R^T, zero for bodies that
-    do not move (inverse mass 0).
+    x (n+1,3); q (n+1,4); R (n+1,3,3); inv_m (n+1,) inverse mass, 0 for bodies that do not move; inv_I (n+1,3,3)
+    world inverse inertia R I_b^-1 R^T, 0 for bodies that do not move.
     """
 
     x: np.ndarray
     q: np.ndarray
     R: np.ndarray
+    inv_m: np.ndarray
     inv_I: np.ndarray
+    use_directions: bool = True  # correct along the gradients of this frame (False: along the current ones)
 
     @classmethod
-    def empty(cls, n: int) -> "Frame":
+    def empty(cls, inv_mass) -> "Frame":
+        n = len(inv_mass)
         q = np.zeros((n + 1, 4))
         q[:, 0] = 1.0
-        return cls(np.zeros((n + 1, 3)), q, np.tile(_EYE, (n + 1, 1, 1)), np.zeros((n + 1, 3, 3)))
+        inv_m = np.zeros(n + 1)
+        inv_m[:n] = np.maximum(inv_mass, 0.0)
+        return cls(np.zeros((n + 1, 3)), q, np.tile(_EYE, (n + 1, 1, 1)), inv_m, np.zeros((n + 1, 3, 3)))
 
     @classmethod
     def of(cls, x, q, inv_mass, inv_inertia_body) -> "Frame":
-        """The frame of pose (x, q) for bodies with inverse masses inv_mass (n,), inverse inertias (n,3,3)."""
-        frame = cls.empty(len(x))
+        """The frame of pose (x, q) for bodies of inverse masses inv_mass (n,) and inverse inertias (n,3,3)."""
+        frame = cls.empty(inv_mass)
         moving = np.flatnonzero(np.asarray(inv_mass) > 0.0)
         frame.refresh(x, q, moving, np.asarray(inv_inertia_body)[moving])
         return frame
 
     def refresh(self, x, q, moving, moving_inv_inertia_body) -> None:
         """Copy the pose (n rows), recompute every R and the I^-1 of the bodies `moving` (a slice or indices,
-        with their body inverse inertias (m,3,3)); the others' I^-1 stays 0."""
+        with their body inverse inertias (m,3,3), 0 for bodies that do not move); the others' I^-1 stays 0."""
         n = len(x)
         self.x[:n], self.q[:n] = x, q
-        R = rotation_matrix(q)
-        self.R[:n] = R
-        Rm = R[moving]
-        self.inv_I[:n][moving] = Rm @ moving_inv_inertia_body @ Rm.transpose(0, 2, 1)
+        R = self.R[:n]
+        R[:] = rotation_matrix(q)
+        if isinstance(moving, slice):
+            np.matmul(R @ moving_inv_inertia_body, R.transpose(0, 2, 1), out=self.inv_I[:n])
+        else:
+            Rm = R[moving]
+            self.inv_I[:n][moving] = Rm @ moving_inv_inertia_body @ Rm.transpose(0, 2, 1)
 
-    def pair(self, index, k) -> "Pair":
-        return Pair(k, index, _rows(self.x, index), _rows(self.q, index), _rows(self.R, index))
+    def set_pose(self, x, q) -> None:
+        """Copy the pose (n rows) and recompute every R; inverse masses and inertias are left as they are."""
+        n = len(x)
+        self.x[:n], self.q[:n] = x, q
+        self.R[:n] = rotation_matrix(q)
+
+    def pose(self, index) -> "Pair":
+        """The pair of slots `index` (2k,) with their pose only (no inverse masses): what row functions read."""
+        return Pair(len(index) // 2, index, _rows(self.x, index), _rows(self.q, index), _rows(self.R, index),
+                    None, None, None)
+
+    def pair(self, index) -> "Pair":
+        inv_m = self.inv_m.take(index)
+        return Pair(len(index) // 2, index, _rows(self.x, index), _rows(self.q, index), _rows(self.R, index),
+                    inv_m > 0.0, inv_m, _rows(self.inv_I, index))
 
 
 @dataclass
@@ -151,8 +229,8 @@ class Pair:
     call serves both. WORLD rows have identity pose and no mobility.
 
     index (2k,) body index (WORLD kept); x (2k,3); q (2k,4); R (2k,3,3); moves (2k,) bool; inv_m (2k,) inverse
-    mass, zero unless the body moves; inv_I (2k,3,3) the world inverse inertia corrections use (the start-of-
-    substep one when a Frame is given), zero unless the body moves. A pose-only pair has None there.
+    mass and inv_I (2k,3,3) the world inverse inertia the corrections use (the start-of-substep one when there
+    is a Frame), both 0 unless the body moves.
     """
 
     k: int
@@ -160,9 +238,9 @@ class Pair:
     x: np.ndarray
     q: np.ndarray
     R: np.ndarray
-    moves: np.ndarray | None = None
-    inv_m: np.ndarray | None = None
-    inv_I: np.ndarray | None = None
+    moves: np.ndarray
+    inv_m: np.ndarray
+    inv_I: np.ndarray
 
 
 def gather(body_a, body_b, x, q, inv_mass, inv_inertia_body, before: Frame | None = None) -> Pair:
@@ -171,32 +249,23 @@ def gather(body_a, body_b, x, q, inv_mass, inv_inertia_body, before: Frame | Non
     real = index != WORLD
     everywhere = real.all()
     safe = index if everywhere else np.where(real, index, 0)
-    xs, qs, inv_m = _rows(x, safe), _rows(q, safe), inv_mass.take(safe)
+    xs, qs = _rows(x, safe), _rows(q, safe)
     if not everywhere:
         xs = np.where(real[:, None], xs, 0.0)
         qs = np.where(real[:, None], qs, _IDENTITY_Q)
-        inv_m = np.where(real, inv_m, 0.0)
-    moves = inv_m > 0.0
-    if not moves.all():
-        inv_m = np.where(moves, inv_m, 0.0)
     R = rotation_matrix(qs)
     if before is not None:
-        inv_I = _rows(before.inv_I, index)
-    else:
-        inv_I = R @ _rows(inv_inertia_body, safe) @ R.transpose(0, 2, 1)
-        if not moves.all():
-            inv_I = np.where(moves[:, None, None], inv_I, 0.0)
-    return Pair(len(body_a), index, xs, qs, R, moves, inv_m, inv_I)
+        inv_m, inv_I = before.inv_m.take(index), _rows(before.inv_I, index)
+        return Pair(len(body_a), index, xs, qs, R, inv_m > 0.0, inv_m, inv_I)
+    inv_m = np.where(real, inv_mass.take(safe), 0.0)
+    moves = inv_m > 0.0
+    inv_I = np.where(moves[:, None, None], R @ _rows(inv_inertia_body, safe) @ R.transpose(0, 2, 1), 0.0)
+    return Pair(len(body_a), index, xs, qs, R, moves, np.where(moves, inv_m, 0.0), inv_I)
 
 
 def apply(pair: Pair, dx, dphi, x, q) -> None:
     """x += dx, q += 0.5 (0, dphi) q (then renormalized), for the moving bodies of the pair (2k rows each)."""
-    qs = pair.q
-    dq = np.empty_like(qs)
-    dq[:, 0] = -0.5 * dot(dphi, qs[:, 1:])
-    dq[:, 1:] = 0.5 * (qs[:, :1] * dphi + cross(dphi, qs[:, 1:]))
-    qs = qs + dq
-    qs /= np.sqrt(dot(qs, qs))[:, None]
+    qs = turn_by(pair.q, dphi)
     xs = pair.x + dx
     m = pair.moves
     if m.all():
@@ -239,7 +308,8 @@ def solve_point(pair: Pair, r, C, alpha_t, lam, keep, x, q, d=None) -> None:
 
     An impulse p (+p on a, -p on b) at arms d moves C by K p, K = sum_s I3 / m_s - [r_s]x I_s^-1 [d_s]x
     (with d = r, the 3-D generalized inverse mass: n^T K n = sum_s 1/m_s + (r_s x n)^T I_s^-1 (r_s x n)).
-    Solve (K + alpha~ I) dlam = -C - alpha~ lam on the kept rows only (keep (k,3)), so a subtracted row stays free.
+    Solve (K + alpha~ I) dlam = -C - alpha~ lam on the kept rows only (keep (k,3) or None: all), so a
+    subtracted row stays free.
     """
     k = pair.k
     if d is None:
@@ -250,7 +320,9 @@ def solve_point(pair: Pair, r, C, alpha_t, lam, keep, x, q, d=None) -> None:
             d = np.where(ok[:, None], d, r)
     M = skew(r) @ pair.inv_I @ skew(d)
     K = (pair.inv_m[:k] + pair.inv_m[k:])[:, None, None] * _EYE - M[:k] - M[k:]
-    active = keep & (K.diagonal(axis1=1, axis2=2) > 0.0)  # rows neither body can move are left alone
+    active = K.diagonal(axis1=1, axis2=2) > 0.0  # rows neither body can move are left alone
+    if keep is not None:
+        active = active & keep
     if active.all():
         K = K + alpha_t[:, None, None] * _EYE
         rhs = -C - alpha_t[:, None] * lam
@@ -260,7 +332,10 @@ def solve_point(pair: Pair, r, C, alpha_t, lam, keep, x, q, d=None) -> None:
         rhs = np.where(active, -C - alpha_t[:, None] * lam, 0.0)
     dlam = np.linalg.solve(K, rhs[:, :, None])[:, :, 0]
     lam += dlam
-    p = _both(dlam, -dlam)
+    _point_impulse(pair, _both(dlam, -dlam), d, x, q)
+
+
+def _point_impulse(pair: Pair, p, d, x, q) -> None:
     # dx_s = p_s / m_s, dphi_s = I_s^-1 (d_s x p_s) = -I_s^-1 [p_s]x d_s
     apply(pair, pair.inv_m[:, None] * p, -matvec(pair.inv_I, matvec(skew(p), d)), x, q)
 
@@ -270,55 +345,21 @@ def _alpha(compliance, idx, h):
 
 
 def _keep(keep, idx):
-    return np.ones((len(idx), 3), dtype=bool) if keep is None else _rows(np.asarray(keep, dtype=bool), idx)
+    return None if keep is None else _rows(np.asarray(keep, dtype=bool), idx)
 
 
-def _project_rows(rows, fam, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before):
-    """Shared driver of the 1-row position families: rows(fam, idx, pair) -> (C (k,), l (2k,3), g (2k,3))."""
-    body_a, body_b = (_rows(b, idx) for b in instance_bodies(fam))
-    pair = gather(body_a, body_b, x, q, inv_mass, inv_inertia_body, before)
-    C, l, g = rows(fam, idx, pair)
-    dl = dg = None
-    if before is not None:
-        _, dl, dg = rows(fam, idx, before.pair(pair.index, pair.k))
-    lam_k = lam.take(idx)
-    solve_rows(pair, l, g, C, _alpha(compliance, idx, h), lam_k, x, q, dl, dg)
-    lam[idx] = lam_k
+# ---------------------------------------------------------------- the families: C and gradients on a pair
 
 
-# ---------------------------------------------------------------- the families
+def _point_arms(fam, idx):
+    """Body points of both slots (2k,3) and the world target (k,3) or 0 of a point family."""
+    if isinstance(fam, PointToNail):
+        p = _rows(fam.point, idx)
+        return _both(p, np.zeros_like(p)), _rows(fam.target, idx)
+    return _both(_rows(fam.point_a, idx), _rows(fam.point_b, idx)), 0.0
 
 
-def _project_point(fam, idx, points, target, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before, keep):
-    body_a, body_b = (_rows(b, idx) for b in instance_bodies(fam))
-    pair = gather(body_a, body_b, x, q, inv_mass, inv_inertia_body, before)
-    r = matvec(pair.R, points)
-    d = None if before is None else matvec(_rows(before.R, pair.index), points)
-    P = pair.x + r
-    lam_k = _rows(lam, idx)
-    solve_point(pair, r, P[: len(idx)] - P[len(idx):] - target, _alpha(compliance, idx, h), lam_k,
-                _keep(keep, idx), x, q, d)
-    lam[idx] = lam_k
-
-
-def project_point_to_point(fam: PointToPoint, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                           before: Frame | None = None, keep=None):
-    """Ball joint, C = x_a + R_a p_a - x_b - R_b p_b (3 rows, lam (k,3)); keep (k,3) masks subtracted rows."""
-    idx = np.asarray(idx)
-    points = _both(_rows(fam.point_a, idx), _rows(fam.point_b, idx))
-    _project_point(fam, idx, points, 0.0, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before, keep)
-
-
-def project_point_to_nail(fam: PointToNail, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                          before: Frame | None = None, keep=None):
-    """Body point at the world point P (fam.target, refreshed by the caller when it moves): C = x + R p - P."""
-    idx = np.asarray(idx)
-    p = _rows(fam.point, idx)
-    _project_point(fam, idx, _both(p, np.zeros_like(p)), _rows(fam.target, idx), x, q, inv_mass, inv_inertia_body,
-                   compliance, h, lam, before, keep)
-
-
-def _orientation_rows(fam, idx, pair):
+def _orientation_rows(fam, idx, pair, before):
     # T . N = 0 as the angle from perpendicular, theta = asin(T . N), about n = unit(T x N): turning a by dphi
     # about n turns T toward N at unit rate, b the other way: g_a = n, g_b = -n.
     k = pair.k
@@ -333,14 +374,7 @@ def _orientation_rows(fam, idx, pair):
     return np.arcsin(np.clip(dot(T, N), -1.0, 1.0)), np.zeros_like(TN), _both(n, -n)
 
 
-def project_orientation(fam: Orientation, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                        before: Frame | None = None):
-    """Body-fixed T of a kept perpendicular to N (world or fixed in b): C = T . N, solved as asin(T . N)."""
-    _project_rows(_orientation_rows, fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam,
-                  before)
-
-
-def _plane_rows(fam, idx, pair):
+def _plane_rows(fam, idx, pair, before):
     # C = N . (P - S): l_a = N, g_a = (P - x_a) x N; b opposite with arm P - x_b (the plane turning about x_b)
     k = pair.k
     PS = pair.x + matvec(pair.R, _both(_rows(fam.point_a, idx), _rows(fam.plane_point, idx)))
@@ -349,13 +383,7 @@ def _plane_rows(fam, idx, pair):
     return dot(N, PS[:k] - PS[k:]), NN, cross(_both(PS[:k], PS[:k]) - pair.x, NN)
 
 
-def project_point_on_plane(fam: PointOnPlane, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                           before: Frame | None = None):
-    """Body point P of a on the plane through S with normal N (world or fixed in b): C = N . (P - S)."""
-    _project_rows(_plane_rows, fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam, before)
-
-
-def _element_translation_rows(fam, idx, pair):
+def _element_translation_rows(fam, idx, pair, before):
     # C = e . (x_a - x_b) - offset, e = R_b axis: l_a = e, g_a = 0, l_b = -e, g_b = (x_a - x_b) x (-e)
     k = pair.k
     e = matvec(pair.R[k:], _rows(fam.axis, idx))
@@ -364,7 +392,7 @@ def _element_translation_rows(fam, idx, pair):
     return dot(e, xa - pair.x[k:]) - fam.offset.take(idx), ee, cross(_both(xa, xa) - pair.x, ee)
 
 
-def _element_rotation_rows(fam, idx, pair):
+def _element_rotation_rows(fam, idx, pair, before):
     # q_err = conj(q_b) q_a conj(ref) = (s, v), s >= 0; C = 2 v . axis (axis in b's frame). q_a += 0.5 (0, dphi) q_a
     # moves q_err by 0.5 (0, R_b^T dphi) q_err, so dC = dphi . R_b (s axis + v x axis) (exact): g_a = that, g_b = -g_a.
     k = pair.k
@@ -375,71 +403,139 @@ def _element_rotation_rows(fam, idx, pair):
     return 2.0 * dot(v, axis), np.zeros((2 * k, 3)), _both(g, -g)
 
 
-def project_element(fam: Element, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                    before: Frame | None = None):
-    """Element rows: fix translation along / rotation about an axis (world or b's frame); the translational and
-    the rotational instances of idx are projected as two vectorized groups."""
-    idx = np.asarray(idx)
-    rot = fam.rotational.take(idx)
-    for group, rows in ((idx[~rot], _element_translation_rows), (idx[rot], _element_rotation_rows)):
-        if len(group):
-            _project_rows(rows, fam, group, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before)
-
-
-def _require(before):
-    if before is None:
-        raise ValueError("before: gear families are on the turn made since the start of the substep; pass its Frame")
-
-
-def project_gear_to_gear(fam: GearToGear, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                         before: Frame):
-    """Gears, made positional per substep: r_a dtheta_a + r_b dtheta_b = 0 for the turn made since the start of
-    the substep (before.q).
-
-    dtheta = 2 vec(q q_prev^-1) . A (A the gear's world axis, scalar part of the turn made >= 0) is the very
-    quantity the solver turns into angular velocity, w = 2 vec(q q_prev^-1) / h. So once the row holds,
-    r_a w_a . A_a + r_b w_b . A_b = 0 at the end of every substep, exactly rather than on average; and no angle
-    error is carried into the next substep (there is no C(x) to drift, so no stabilization): the total turns,
-    sums of per-substep turns that each keep the ratio, keep it too. Exact gradient: q += 0.5 (0, dphi) q moves
-    vec(dq) = v by 0.5 (s dphi + dphi x v) and A by dphi x A, so dC = dphi . r (s A + A x v); a projection
-    lands on the row up to the O(dphi^2) renormalization.
-    """
-    _require(before)
-    idx = np.asarray(idx)
-    k = len(idx)
-    pair = gather(_rows(fam.body_a, idx), _rows(fam.body_b, idx), x, q, inv_mass, inv_inertia_body, before)
-    s, v = turn_since(pair.q, _rows(before.q, pair.index))
+def _gear_rows(fam, idx, pair, before):
+    # C = r_a theta_a . A_a + r_b theta_b . A_b, theta = turn_since(q, q_prev) the turn since the start of the
+    # substep, A = R axis. A small turn dphi of q moves theta (turn_jacobian_t) and A by dphi x A:
+    # g = r (turn_jacobian_t(theta, A) + A x theta).
+    k = pair.k
+    theta = turn_since(pair.q, _rows(before.q, pair.index))
     A = matvec(pair.R, _both(_rows(fam.axis_a, idx), _rows(fam.axis_b, idx)))
     r = _both(fam.radius_a.take(idx), fam.radius_b.take(idx))
-    Cs = 2.0 * r * dot(v, A)
-    g = r[:, None] * (s[:, None] * A + cross(A, v))
-    lam_k = lam.take(idx)
-    solve_rows(pair, np.zeros_like(g), g, Cs[:k] + Cs[k:], _alpha(compliance, idx, h), lam_k, x, q)
-    lam[idx] = lam_k
+    Cs = r * dot(theta, A)
+    return Cs[:k] + Cs[k:], np.zeros_like(A), r[:, None] * (turn_jacobian_t(theta, A) + cross(A, theta))
 
 
-def project_gear_to_weight(fam: GearToWeight, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
-                           before: Frame):
-    """Rope over a gear, per substep: the weight's displacement along the rope equals the rim's travel,
-    C = (dtheta x arm) . d - (x_w - x_w_prev) . d, dtheta = 2 vec(q_g q_g_prev^-1) (scalar part >= 0).
-
-    As for gears, the row is on the increments the solver turns into velocities, so rope speed equals rim speed
-    at the end of every substep and the rope never creeps. With u = arm x d, C = 2 v . u - dx_w . d, and
-    (as in project_gear_to_gear) g_gear = s u + v x u exactly; l_weight = -d.
-    """
-    _require(before)
-    idx = np.asarray(idx)
-    k = len(idx)
-    pair = gather(_rows(fam.gear, idx), _rows(fam.weight, idx), x, q, inv_mass, inv_inertia_body, before)
-    s, v = turn_since(pair.q[:k], _rows(before.q, pair.index[:k]))
+def _weight_rows(fam, idx, pair, before):
+    # C = (theta x arm) . d - (x_w - x_w_prev) . d = theta . u - dx_w . d, u = arm x d, theta the gear's turn;
+    # g_gear = turn_jacobian_t(theta, u), l_weight = -d
+    k = pair.k
+    theta = turn_since(pair.q[:k], _rows(before.q, pair.index[:k]))
     d = _rows(fam.direction, idx)
     u = cross(_rows(fam.arm, idx), d)
     moved = pair.x[k:] - _rows(before.x, pair.index[k:])  # WORLD: 0 - 0
     zero = np.zeros_like(d)
+    return dot(theta, u) - dot(moved, d), _both(zero, -d), _both(turn_jacobian_t(theta, u), zero)
+
+
+def _project_rows(rows, fam, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before, target=None):
+    """Shared driver of the 1-row families: rows(fam, idx, pair, before) -> (C (k,), l (2k,3), g (2k,3)).
+    target (k_f,) or None: the value each row is projected to (0 when None; self-assembly curves)."""
+    body_a, body_b = (_rows(b, idx) for b in instance_bodies(fam))
+    pair = gather(body_a, body_b, x, q, inv_mass, inv_inertia_body, before)
+    C, l, g = rows(fam, idx, pair, before)
+    if target is not None:
+        C = C - target.take(idx)
+    dl = dg = None
+    if before is not None and before.use_directions:
+        _, dl, dg = rows(fam, idx, before.pair(pair.index), before)
     lam_k = lam.take(idx)
-    solve_rows(pair, _both(zero, -d), _both(s[:, None] * u + cross(v, u), zero), 2.0 * dot(v, u) - dot(moved, d),
-               _alpha(compliance, idx, h), lam_k, x, q)
+    solve_rows(pair, l, g, C, _alpha(compliance, idx, h), lam_k, x, q, dl, dg)
     lam[idx] = lam_k
+
+
+def _project_point(fam, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before, keep, row_target=None):
+    """Shared driver of the point families: C = x_a + R_a p_a - x_b - R_b p_b - P (P: the nail, 0 for joints)
+    - row_target (k_f,3) (self-assembly curves; None: 0)."""
+    body_a, body_b = (_rows(b, idx) for b in instance_bodies(fam))
+    pair = gather(body_a, body_b, x, q, inv_mass, inv_inertia_body, before)
+    points, target = _point_arms(fam, idx)
+    if row_target is not None:
+        target = target + _rows(row_target, idx)
+    r = matvec(pair.R, points)
+    d = None if before is None or not before.use_directions else matvec(_rows(before.R, pair.index), points)
+    P = pair.x + r
+    lam_k = _rows(lam, idx)
+    solve_point(pair, r, P[: pair.k] - P[pair.k:] - target, _alpha(compliance, idx, h), lam_k,
+                _keep(keep, idx), x, q, d)
+    lam[idx] = lam_k
+
+
+# ---------------------------------------------------------------- the kernels, one per family
+
+
+def project_point_to_point(fam: PointToPoint, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
+                           before: Frame | None = None, keep=None, target=None):
+    """Ball joint, C = x_a + R_a p_a - x_b - R_b p_b (3 rows, lam (k,3)); keep (k,3) masks subtracted rows."""
+    _project_point(fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam, before, keep, target)
+
+
+def project_point_to_nail(fam: PointToNail, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
+                          before: Frame | None = None, keep=None, target=None):
+    """Body point at the world point P (fam.target, refreshed by the caller when it moves): C = x + R p - P."""
+    _project_point(fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam, before, keep, target)
+
+
+def project_orientation(fam: Orientation, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
+                        before: Frame | None = None, target=None):
+    """Body-fixed T of a kept perpendicular to N (world or fixed in b): C = T . N, solved as asin(T . N)."""
+    _project_rows(_orientation_rows, fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam,
+                  before, target)
+
+
+def project_point_on_plane(fam: PointOnPlane, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
+                           before: Frame | None = None, target=None):
+    """Body point P of a on the plane through S with normal N (world or fixed in b): C = N . (P - S)."""
+    _project_rows(_plane_rows, fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam, before,
+                  target)
+
+
+def _element_groups(fam, idx):
+    rot = fam.rotational.take(idx)
+    return [(g, rows) for g, rows in ((idx[~rot], _element_translation_rows), (idx[rot], _element_rotation_rows))
+            if len(g)]
+
+
+def project_element(fam: Element, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
+                    before: Frame | None = None, target=None):
+    """Element rows: fix translation along / rotation about an axis (world or b's frame); the translational and
+    the rotational instances of idx are projected as two vectorized groups."""
+    for group, rows in _element_groups(fam, np.asarray(idx)):
+        _project_rows(rows, fam, group, x, q, inv_mass, inv_inertia_body, compliance, h, lam, before, target)
+
+
+def project_gear_to_gear(fam: GearToGear, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
+                         before: Frame, target=None):
+    """Gears, made positional per substep: r_a dtheta_a + r_b dtheta_b = 0 for the turn made since the start of
+    the substep (before.q).
+
+    dtheta = theta . A, theta = turn_since(q, q_prev) the turn as a rotation vector and A the gear's world axis, is the
+    very quantity the solver turns into angular velocity, w = theta / h. So once the row holds,
+    r_a w_a . A_a + r_b w_b . A_b = 0 at the end of every substep, exactly rather than on average; and no angle
+    error is carried into the next substep (there is no C(x) to drift, so no stabilization): the total turns,
+    sums of per-substep turns that each keep the ratio, keep it too. The gradient is exact (see _gear_rows), so a
+    projection lands on the row up to the O(dphi^2) renormalization.
+    """
+    _require(before)
+    _project_rows(_gear_rows, fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam, before,
+                  target)
+
+
+def project_gear_to_weight(fam: GearToWeight, idx, x, q, inv_mass, inv_inertia_body, compliance, h, lam, *,
+                           before: Frame, target=None):
+    """Rope over a gear, per substep: the weight's displacement along the rope equals the rim's travel,
+    C = (theta x arm) . d - (x_w - x_w_prev) . d, theta = turn_since(q_g, q_g_prev) the gear's turn.
+
+    As for gears, the row is on the increments the solver turns into velocities, so rope speed equals rim speed
+    at the end of every substep and the rope never creeps (exact gradient: _weight_rows).
+    """
+    _require(before)
+    _project_rows(_weight_rows, fam, np.asarray(idx), x, q, inv_mass, inv_inertia_body, compliance, h, lam, before,
+                  target)
+
+
+def _require(before):
+    if before is None:
+        raise ValueError("before: gear rows are on the turn made since the start of the substep; pass its Frame")
 
 
 # ---------------------------------------------------------------- dispatch and colouring
@@ -453,7 +549,6 @@ PROJECTIONS = {
     GearToGear: project_gear_to_gear,
     GearToWeight: project_gear_to_weight,
 }
-
 
 def instance_bodies(fam) -> tuple[np.ndarray, np.ndarray]:
     """The two body slots (k,), (k,) of every instance of a family (WORLD where a slot is unused)."""
@@ -487,3 +582,24 @@ def colour_instances(body_a, body_b, dynamic=None) -> list[np.ndarray]:
         for bd in mine:
             used.setdefault(bd, set()).add(c)
     return [np.flatnonzero(colour_of == c) for c in range(colour_of.max() + 1)] if len(colour_of) else []
+
+
+# ---------------------------------------------------------------- rows for the direct projection and switch-on
+
+# the 1-row families' C and gradients on a pair: rows(fam, idx, pair, before) -> (C (k,), l (2k,3), g (2k,3))
+ROW_FUNCTIONS = {
+    Orientation: _orientation_rows,
+    PointOnPlane: _plane_rows,
+    GearToGear: _gear_rows,
+    GearToWeight: _weight_rows,
+}
+# families whose rows are velocity constraints made positional per substep: no C(x), so no assembly curve
+VELOCITY_FAMILIES = (GearToGear, GearToWeight)
+
+
+def row_groups(fam) -> list:
+    """[(instance indices, row function)] covering a 1-row family: one group, or two for Element (the
+    translational and the rotational rows are different functions)."""
+    if isinstance(fam, Element):
+        return _element_groups(fam, np.arange(len(fam.body_a)))
+    return [(np.arange(len(instance_bodies(fam)[0])), ROW_FUNCTIONS[type(fam)])]

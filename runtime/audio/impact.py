@@ -1,0 +1,200 @@
+"""Audio stage, collision sounds: the exciters `modal`, `impact` and `pulse`.
+
+An exciter turns each hit (a collision event, or the time of an `at` sound) into sound, starting at the
+hit's sample, round((t - start) * fs). Its strength is the hit's value of the event factors that multiply it
+in the sound's expression (`modal(bar) * impulse` excites the bar with each hit's impulse; the compiler moves
+such factors onto the exciter, see graph.py), so that a new hit adds to the ringing of the old ones instead of
+rescaling them.
+
+- modal(body, [input]): the body's modes (modal.py) in a resonator bank kept across hits (resonator.py),
+  each hit a half-sine force pulse of the contact's duration (excitation.py) weighted per mode by |phi_n(p)|
+  at the contact point. A second argument drives the bank with any signal as well.
+- impact([a, b]): the collision sound of two bodies, homogeneous or not, chosen from both materials:
+  the modal bank of each body that has modes, plus the contact itself: a click (the force pulse, the
+  "acceleration noise" of the bodies) and a burst of noise band-passed at 1 / tau whose level rises as the
+  materials ring less (wood, plastic: a thud; metal, glass: a ring with a small tick).
+- pulse([duration]): the bare force pulse (unit peak), for graphs that build their own sound from it.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .excitation import half_sine
+from .nodes import Node, as_block
+from .noise import seed_for
+from .resonator import ResonatorBank
+
+# ringing of a material, rho = exp(-loss / RING_LOSS): ~1 for metal and glass (loss 1e-4), ~0 for wood (1e-2)
+RING_LOSS = 3e-3
+# level of the click (force pulse) in an impact, and of its noise burst when neither body rings
+CLICK_LEVEL = 0.25
+BURST_LEVEL = 1.0
+# the burst's tail decays with this many contact durations as time constant
+BURST_TAIL = 2.0
+# band-pass of the burst: centre 1 / tau kept in [BURST_LOWEST, 0.4 fs], Q
+BURST_LOWEST = 200.0
+BURST_Q = 0.8
+
+
+class BodyBank:
+    """The resonator bank of one body, with the parts of pulses that run past the end of a block."""
+
+    def __init__(self, body: str, modes, fs: float, block: int):
+        self.body, self.modes = body, modes
+        self.bank = ResonatorBank(modes.freq, modes.decay, modes.gain, fs, block)
+        self.pending = []  # (gains, samples still to feed from the start of the next block)
+
+    def render(self, n: int, inputs: list) -> np.ndarray:
+        """inputs: (gains, k0, x) with x of any length; what does not fit in this block waits."""
+        fitted, pending = [], []
+        for gains, x in self.pending:
+            fitted.append((gains, 0, x[:n]))
+            if len(x) > n:
+                pending.append((gains, x[n:]))
+        for gains, k0, x in inputs:
+            room = n - k0
+            fitted.append((gains, k0, x[:room]))
+            if len(x) > room:
+                pending.append((gains, x[room:]))
+        self.pending = pending
+        if not fitted and self.bank.silent:
+            return np.zeros(n)
+        return self.bank.render(n, fitted)
+
+
+class Exciter(Node):
+    """Base of the nodes that sound at hits. `strength`: the expression of event values multiplying it."""
+
+    def __init__(self, strength):
+        self.strength = strength
+        self._pulses: dict = {}
+
+    def pulse(self, tau: float, fs: float, area: bool = True) -> np.ndarray:
+        key = (max(1, int(round(tau * fs))), area)
+        if key not in self._pulses:
+            self._pulses[key] = half_sine(tau, fs, area)
+        return self._pulses[key]
+
+
+class Modal(Exciter):
+    """modal(body, ...): see the module docstring."""
+
+    def __init__(self, banks: list, strength, drive: Node | None = None, tau: float | None = None):
+        super().__init__(strength)
+        self.banks, self.drive, self.tau = banks, drive, tau
+
+    def children(self):
+        return (self.drive,) if self.drive is not None else ()
+
+    def render(self, ctx):
+        inputs = {id(b): [] for b in self.banks}
+        for k0, hit in ctx.hits:
+            s = ctx.strength(self.strength, hit)
+            if s == 0.0:
+                continue
+            x = self.pulse(self.tau or hit.tau, ctx.fs)
+            touched = [b for b in self.banks if b.body in hit.bodies] or self.banks
+            for b in touched:
+                inputs[id(b)].append((s * b.modes.excitation(hit.local.get(b.body)), k0, x))
+        if self.drive is not None:
+            x = as_block(self.drive.render(ctx), ctx.n)
+            x = x.mean(axis=0) if x.ndim > 1 else x
+            for b in self.banks:
+                inputs[id(b)].append((np.ones(len(b.modes)), 0, x))
+        out = np.zeros(ctx.n)
+        for b in self.banks:
+            out += b.render(ctx.n, inputs[id(b)])
+        return out
+
+
+class Impact(Exciter):
+    """impact(a, b): the modal banks of the bodies hit, plus a click and a noise burst set by the materials.
+    `ringing`: body -> rho in [0, 1] (0 for a body without modes)."""
+
+    def __init__(self, banks: dict, ringing: dict, strength, seed: tuple, tau: float | None = None):
+        super().__init__(strength)
+        self.banks, self.ringing, self.seed, self.tau = banks, ringing, seed, tau
+        self.pending = []  # contact sound (click + burst) still to play: arrays starting at the next block
+
+    def render(self, ctx):
+        inputs = {name: [] for name in self.banks}
+        out = np.zeros(ctx.n)
+        for x in self.pending:
+            out[: min(len(x), ctx.n)] += x[: ctx.n]
+        self.pending = [x[ctx.n:] for x in self.pending if len(x) > ctx.n]
+        for k0, hit in ctx.hits:
+            s = ctx.strength(self.strength, hit)
+            if s == 0.0:
+                continue
+            tau = self.tau or hit.tau
+            for name in hit.bodies:
+                if name in self.banks:
+                    bank = self.banks[name]
+                    inputs[name].append((s * bank.modes.excitation(hit.local.get(name)), k0, self.pulse(tau, ctx.fs)))
+            rho = max((self.ringing.get(name, 0.0) for name in hit.bodies), default=0.0)
+            contact = s * self._contact_sound(tau, rho, ctx.fs, hit)
+            room = ctx.n - k0
+            out[k0:k0 + min(room, len(contact))] += contact[:room]
+            if len(contact) > room:
+                self.pending.append(contact[room:])
+        for name, bank in self.banks.items():
+            out += bank.render(ctx.n, inputs[name])
+        return out
+
+    def _contact_sound(self, tau: float, rho: float, fs: float, hit) -> np.ndarray:
+        """The click (force pulse, unit peak) and the noise burst of one contact, as one finite signal."""
+        from .iir import PoleFilter
+        from .nodes import biquad
+
+        click = self.pulse(tau, fs, area=False)
+        peak = len(click) // 2
+        tail = int(math.ceil(6.0 * BURST_TAIL * tau * fs))  # six time constants: -52 dB
+        fall = click[peak] * np.exp(-np.arange(1, tail) / (BURST_TAIL * tau * fs))
+        envelope = np.concatenate([click[:peak + 1], fall])
+        envelope[0] = 0.0  # the burst follows the click by a sample: no chance of cancelling it at the onset
+        rng = np.random.default_rng(seed_for(*self.seed, hit.sample, hit.bodies))
+        band = PoleFilter(*biquad("bandpass", max(BURST_LOWEST, 1.0 / tau), BURST_Q, fs))
+        burst = band.run(rng.standard_normal(len(envelope)) * envelope)
+        out = BURST_LEVEL * (1.0 - 0.8 * rho) * burst
+        out[: len(click)] += CLICK_LEVEL * click
+        return out
+
+
+class Pulse(Exciter):
+    """pulse([duration]): a half-sine of unit peak at every hit (its contact duration unless given)."""
+
+    def __init__(self, strength, duration: float | None = None):
+        super().__init__(strength)
+        self.duration = duration
+        self.pending = []
+
+    def render(self, ctx):
+        out = np.zeros(ctx.n)
+        for x in self.pending:
+            out[: min(len(x), ctx.n)] += x[: ctx.n]
+        self.pending = [x[ctx.n:] for x in self.pending if len(x) > ctx.n]
+        for k0, hit in ctx.hits:
+            s = ctx.strength(self.strength, hit)
+            x = s * self.pulse(self.duration or hit.tau, ctx.fs, area=False)
+            room = ctx.n - k0
+            out[k0:k0 + min(room, len(x))] += x[:room]
+            if len(x) > room:
+                self.pending.append(x[room:])
+        return out
+
+
+def ringing_of(material) -> float:
+    """rho = exp(-loss / RING_LOSS) of a material's internal friction (Rayleigh: at 1 kHz)."""
+    from .modal import DEFAULT_LOSS
+
+    if material is None:
+        return 0.0
+    if material.rayleigh is not None:
+        alpha, beta = material.rayleigh
+        w = 2.0 * math.pi * 1000.0
+        loss = (alpha + beta * w * w) / 2.0 / (math.pi * 1000.0)  # d = pi f loss at 1 kHz
+    else:
+        loss = material.loss if material.loss is not None else DEFAULT_LOSS
+    return math.exp(-loss / RING_LOSS)
