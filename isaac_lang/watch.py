@@ -209,7 +209,8 @@ class Watch:
         try:
             from isaac_runtime.run import RunOptions
 
-            options = RunOptions(solver=self.options.solver, step=self.options.step, until=self.options.until)
+            options = RunOptions(solver=self.options.solver, step=self.options.step, until=self.options.until,
+                                 folder=job.folder)
             result = _simulate(job.scene, options, lambda sim, recorder: self._on_frame(job, recorder))
             self._finish(job, result)
         except Superseded:
@@ -375,53 +376,17 @@ class FileWatcher:
 
 
 def _simulate(scene, options, on_frame):
-    """isaac_runtime.run.simulate with a call after every recorded frame, on_frame(sim, recorder), which may raise
-    Superseded. Uses RunOptions.on_frame when the runtime has it; until then, the same stages frame by frame."""
+    """isaac_runtime.run.simulate with on_frame(sim, recorder) after every recorded frame (it may raise Superseded)."""
     from isaac_runtime import run
 
-    if "on_frame" in {f.name for f in dataclasses.fields(run.RunOptions)}:
-        return run.simulate(scene, dataclasses.replace(options, on_frame=on_frame))
-    from isaac_runtime.outputs import Recorder
-    from isaac_runtime.plan import PlanOptions, compile_plan
-    from isaac_runtime.simulation import NumericalError, Simulation
-
-    started = time.perf_counter()
-    plan = compile_plan(scene, PlanOptions(options.solver, options.step, options.until))
-    sim = Simulation(plan)
-    audio = plan.audio.record(sim) if getattr(plan, "audio", None) is not None else None
-    recorder = Recorder(plan.frame_times, plan.names)
-    error = None
-    energy0 = sim.energy()
-    try:
-        for t_frame in plan.frame_times:
-            sim.advance_to(float(t_frame))
-            recorder.record(sim.state, sim.check_constraints(), sim.energy())
-            on_frame(sim, recorder)
-    except NumericalError as failure:
-        error = failure
-    report = run._report(sim, recorder, energy0, time.perf_counter() - started, error)
-    result = run.RunResult(sim, recorder, report, error)
-    result.audio = audio
-    return result
+    return run.simulate(scene, dataclasses.replace(options, on_frame=on_frame))
 
 
 def _write_outputs(scene, result, out: Path) -> None:
-    """The files `isaac run` writes (run.write_outputs when the runtime has it: then audio.wav too)."""
+    """The files `isaac run` writes."""
     from isaac_runtime import run
 
-    if hasattr(run, "write_outputs"):
-        run.write_outputs(scene, result, out)
-        return
-    from isaac_runtime.outputs import write_json, write_npz
-
-    from . import ir
-
-    write_npz(out / "trajectory.npz", result.recorder.arrays())
-    write_json(out / "events.json", result.simulation.events)
-    write_json(out / "ir.json", ir.to_data(scene))
-    if getattr(result, "audio", None) is not None:
-        result.report["audio"] = result.audio.write(out / "audio.wav", result.report["wall_time"])
-    write_json(out / "report.json", result.report)
+    run.write_outputs(scene, result, out)
 
 
 def _warm_up() -> None:

@@ -25,6 +25,7 @@ class RunOptions:
     until: float | None = None
     progress: bool = False
     folder: object = None  # the scene's folder, for the assets it names
+    on_frame: object = None  # called as on_frame(simulation, recorder) after every recorded frame (watch mode)
 
 
 @dataclass
@@ -52,20 +53,27 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
                 sim.advance_to(float(t_frame))
                 recorder.record(sim.state, sim.check_constraints(), sim.energy())
                 bar.update(1)
+                if options.on_frame is not None:
+                    options.on_frame(sim, recorder)
         except NumericalError as failure:
             error = failure
     report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
     return RunResult(sim, recorder, report, error, audio)
 
 
-def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path | None = None) -> int:
-    result = simulate(scene, options)
+def write_outputs(scene: ir.Scene, result: RunResult, out: Path) -> None:
+    """The files of ARCHITECTURE.md's contract, each written atomically; report.json last."""
     write_npz(out / "trajectory.npz", result.recorder.arrays())
     write_json(out / "events.json", result.simulation.events)
     write_json(out / "ir.json", ir.to_data(scene))
     if result.audio is not None:
         result.report["audio"] = result.audio.write(out / "audio.wav", result.report["wall_time"])
     write_json(out / "report.json", result.report)
+
+
+def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path | None = None) -> int:
+    result = simulate(scene, options)
+    write_outputs(scene, result, out)
     if result.error is not None:
         where = f"{scene_path}: " if scene_path else ""
         print(f"{where}error: {result.error}\n"

@@ -19,7 +19,8 @@ def test_run_writes_the_contracted_files(tmp_path, capsys):
     out = tmp_path / "out"
     code = main(["run", str(SCENES / "selfassembly.isaac"), "--out", str(out), "--until", "1.5"])
     assert code == 0
-    assert sorted(p.name for p in out.iterdir()) == ["events.json", "ir.json", "report.json", "trajectory.npz"]
+    assert sorted(p.name for p in out.iterdir()) == ["events.json", "ir.json", "report.json", "trajectory.npz",
+                                                        "viewer.html"]
     with np.load(out / "trajectory.npz", allow_pickle=False) as data:
         T = len(data["time"])
         assert list(data["bodies"]) == ["a", "b"]
