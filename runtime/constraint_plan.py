@@ -44,7 +44,7 @@ class Epoch:
     end: float
     active: np.ndarray  # (m,) global row indices
     solver: str  # dense | sparse | tree | none
-    pattern: object = None  # linsolve.SparsePattern or TreeSolver, built on first use
+    pattern: object = None  # linsolve.DensePattern, SparsePattern or TreeSolver, built on first use
 
 
 @dataclass
@@ -240,4 +240,6 @@ def prepare_epoch(plan: ConstraintPlan, epoch: Epoch, dynamic_mask: np.ndarray) 
         epoch.pattern = tree
     elif choice == "sparse":
         epoch.pattern = linsolve.SparsePattern.build(rb, n, dynamic_mask)
+    else:
+        epoch.pattern = linsolve.DensePattern(rb)
     epoch.solver = choice

@@ -11,7 +11,7 @@ import numpy as np
 from isaac_lang import expr as E
 from isaac_lang import ir
 
-from .rotation import quat_to_matrix
+from .rotation import cross, quat_to_matrix
 
 
 @dataclass
@@ -105,9 +105,10 @@ def apply_forces(plan: ForcePlan, x, v, w, R, t, inertia_world, force_out, torqu
     if plan.wind is not None:
         plan.wind.apply(x, v, w, R, t, force_out, torque_out)
     if plan.gyroscopic is not None:
-        k = plan.gyroscopic
+        # every body (no gather) when all of them are gyroscopic
+        k = plan.gyroscopic if len(plan.gyroscopic) < len(w) else slice(None)
         # tau -= w x (I w)
-        torque_out[k] -= np.cross(w[k], np.einsum("kij,kj->ki", inertia_world[k], w[k]))
+        torque_out[k] -= cross(w[k], np.matmul(inertia_world[k], w[k, :, None])[:, :, 0])
 
 
 def _world_point(body, point, x, R):
@@ -126,16 +127,16 @@ def _apply_springs(s: Springs, x, v, w, R, force_out, torque_out) -> None:
     length = np.linalg.norm(d, axis=1)
     direction = d / np.maximum(length, 1e-12)[:, None]
     # velocity of each attachment point: v + w x r
-    va = v[a] + np.cross(w[a], ra)
-    vb = np.where(b_inside[:, None], v[b] + np.cross(w[b], rb), 0.0)
+    va = v[a] + cross(w[a], ra)
+    vb = np.where(b_inside[:, None], v[b] + cross(w[b], rb), 0.0)
     closing = np.einsum("ki,ki->k", vb - va, direction)
     # F on a = (k (|d| - L0) + c d|d|/dt) d_hat;  b gets -F
     magnitude = s.stiffness * (length - s.rest) + s.damping * closing
     f = magnitude[:, None] * direction
     np.add.at(force_out, a, f)
-    np.add.at(torque_out, a, np.cross(ra, f))
+    np.add.at(torque_out, a, cross(ra, f))
     np.add.at(force_out, b[b_inside], -f[b_inside])
-    np.add.at(torque_out, b[b_inside], -np.cross(rb, f)[b_inside])
+    np.add.at(torque_out, b[b_inside], -cross(rb, f)[b_inside])
 
 
 def _apply_loads(loads: Loads, x, R, t, force_out, torque_out) -> None:
@@ -145,4 +146,4 @@ def _apply_loads(loads: Loads, x, R, t, force_out, torque_out) -> None:
         arm = R[body] @ loads.point[k]
         force_out[body] += f
         # a force at a point off the centre of mass also turns the body: tau = r x F
-        torque_out[body] += np.asarray(E.evaluate(loads.torque[k], env), dtype=float) + np.cross(arm, f)
+        torque_out[body] += np.asarray(E.evaluate(loads.torque[k], env), dtype=float) + cross(arm, f)

@@ -3,7 +3,8 @@
     dx/dt = v      dq/dt = 0.5 (0, w) q      dv/dt = a      dw/dt = alpha
 
 euler: semi-implicit (symplectic) Euler, velocities first. midpoint: explicit RK2. rk4: classic Runge-Kutta.
-Quaternions are renormalized after every step. Stage buffers are allocated once (`Stages`).
+Quaternions are renormalized after every step. Stage buffers are allocated once (`Stages`), each body's state
+packed in one row [x(3) q(4) v(3) w(3)] so that a stage state y0 + c k is two numpy calls, not eight.
 """
 from __future__ import annotations
 
@@ -13,67 +14,78 @@ from .rotation import quat_derivative, quat_integrate, quat_normalize
 
 # classic RK4 tableau: stage times and the weights of the four slopes
 RK4_C = (0.0, 0.5, 0.5, 1.0)
-RK4_B = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+RK4_B = np.array((1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0))
+
+# columns of a packed body row
+X, Q, V, W = slice(0, 3), slice(3, 7), slice(7, 10), slice(10, 13)
+PACKED = 13
 
 
 class Stages:
-    """Preallocated slopes and stage states for up to four stages."""
+    """Preallocated slopes and stage states for up to four stages, packed per body.
+
+    k (count, n, 13) slopes, y0 (n, 13) the state at the start of the step, y (n, 13) a stage state; the named
+    arrays are views into them: dx, dq, dv, dw (count, n, 3 or 4) and x, q, v, w (n, 3 or 4).
+    """
 
     def __init__(self, n: int, count: int = 4):
-        self.dx = np.zeros((count, n, 3))
-        self.dq = np.zeros((count, n, 4))
-        self.dv = np.zeros((count, n, 3))
-        self.dw = np.zeros((count, n, 3))
-        self.x = np.zeros((n, 3))
-        self.q = np.zeros((n, 4))
-        self.v = np.zeros((n, 3))
-        self.w = np.zeros((n, 3))
+        self.k = np.zeros((count, n, PACKED))
+        self.y0 = np.zeros((n, PACKED))
+        self.y = np.zeros((n, PACKED))
+        self.dx, self.dq, self.dv, self.dw = self.k[:, :, X], self.k[:, :, Q], self.k[:, :, V], self.k[:, :, W]
+        self.x, self.q, self.v, self.w = self.y[:, X], self.y[:, Q], self.y[:, V], self.y[:, W]
+
+    def load(self, state) -> None:
+        """y0 <- the packed state (x, q, v, w)."""
+        y0 = self.y0
+        y0[:, X], y0[:, Q], y0[:, V], y0[:, W] = state
 
 
 def _slope(accel, t, x, q, v, w, stages: Stages, k: int, epoch) -> None:
     stages.dx[k] = v
-    stages.dq[k] = quat_derivative(q, w)
+    quat_derivative(q, w, out=stages.dq[k])
     accel(t, x, q, v, w, stages.dv[k], stages.dw[k], epoch)
 
 
-def _stage_state(state, stages: Stages, k: int, scale: float) -> tuple:
-    x, q, v, w = state
-    np.multiply(stages.dx[k], scale, out=stages.x)
-    stages.x += x
-    np.multiply(stages.dq[k], scale, out=stages.q)
-    stages.q += q
+def _stage_state(stages: Stages, k: int, scale: float) -> tuple:
+    """y = y0 + scale k_k, its quaternions renormalized; returns the views (x, q, v, w) of y."""
+    np.multiply(stages.k[k], scale, out=stages.y)
+    stages.y += stages.y0
     quat_normalize(stages.q, out=stages.q)
-    np.multiply(stages.dv[k], scale, out=stages.v)
-    stages.v += v
-    np.multiply(stages.dw[k], scale, out=stages.w)
-    stages.w += w
     return stages.x, stages.q, stages.v, stages.w
+
+
+def _advance(state, increment) -> None:
+    """(x, q, v, w) += the packed increment (n, 13); quaternions renormalized."""
+    x, q, v, w = state
+    x += increment[:, X]
+    q += increment[:, Q]
+    v += increment[:, V]
+    w += increment[:, W]
+    quat_normalize(q, out=q)
 
 
 def step_rk4(accel, t, h, state, stages: Stages, epoch) -> None:
     x, q, v, w = state
     _slope(accel, t, x, q, v, w, stages, 0, epoch)
+    # after the first slope: it may have moved kinematic bodies to their pose at t
+    stages.load(state)
     for k in (1, 2, 3):
-        xs, qs, vs, ws = _stage_state(state, stages, k - 1, RK4_C[k] * h)
+        xs, qs, vs, ws = _stage_state(stages, k - 1, RK4_C[k] * h)
         _slope(accel, t + RK4_C[k] * h, xs, qs, vs, ws, stages, k, epoch)
     # y += h sum_k b_k k_k
-    x += h * np.tensordot(RK4_B, stages.dx, axes=1)
-    q += h * np.tensordot(RK4_B, stages.dq, axes=1)
-    v += h * np.tensordot(RK4_B, stages.dv, axes=1)
-    w += h * np.tensordot(RK4_B, stages.dw, axes=1)
-    quat_normalize(q, out=q)
+    slopes = stages.k[:4]
+    _advance(state, h * np.matmul(RK4_B, slopes.reshape(4, -1)).reshape(slopes.shape[1:]))
 
 
 def step_midpoint(accel, t, h, state, stages: Stages, epoch) -> None:
     x, q, v, w = state
     _slope(accel, t, x, q, v, w, stages, 0, epoch)
-    xs, qs, vs, ws = _stage_state(state, stages, 0, 0.5 * h)
+    # after the first slope: it may have moved kinematic bodies to their pose at t
+    stages.load(state)
+    xs, qs, vs, ws = _stage_state(stages, 0, 0.5 * h)
     _slope(accel, t + 0.5 * h, xs, qs, vs, ws, stages, 1, epoch)
-    x += h * stages.dx[1]
-    q += h * stages.dq[1]
-    v += h * stages.dv[1]
-    w += h * stages.dw[1]
-    quat_normalize(q, out=q)
+    _advance(state, h * stages.k[1])
 
 
 def step_euler(accel, t, h, state, stages: Stages, epoch) -> None:

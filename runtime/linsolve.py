@@ -5,7 +5,8 @@ row_bodies (m,2) body indices (-1 = world). Bodies with zero inverse mass/inerti
 nothing. Three solvers, all returning (lam (m,), SolveInfo):
 
 * dense   `assemble_dense` + `solve_dense`: A (m,m) built by pairwise comparison of slot bodies, Cholesky;
-          O(m^2) memory, O(m^3) time.
+          O(m^2) memory, O(m^3) time. `DensePattern` does the comparisons once per active row set (the
+          runtime's path; `assemble_dense` is its reference) and calls LAPACK potrf/potrs directly.
 * sparse  `SparsePattern.build` once per active row set, then `solve_sparse`: A as CSC filled by one
           bincount per step, scipy SuperLU. Near O(m) for chains and bounded-degree trees.
 * tree    `TreeSolver` (Baraff 1996, "Linear-time dynamics using Lagrange multipliers"), O(nodes), below.
@@ -39,6 +40,7 @@ ends) is a closed loop through the ground, and `TreeSolver.build` returns None f
 """
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -62,6 +64,8 @@ DENSE_MAX_ROWS = 110
 # From this many rows on one body the tree beats sparse: J M^-1 J^T holds a dense block of that size (stars:
 # sparse/tree 0.33/0.37 ms at 60 rows, 0.44/0.43 at 72, 1.07/0.66 at 120; 2400 ms vs 17 ms at 3000 rows).
 TREE_HUB_ROWS = 72
+
+_POTRF, _POTRS = scipy.linalg.lapack.dpotrf, scipy.linalg.lapack.dpotrs
 
 
 @dataclass
@@ -88,9 +92,10 @@ def _dynamic_slots(rb: np.ndarray, dynamic_mask) -> np.ndarray:
 
 
 def _relative_residual(r: np.ndarray, rhs: np.ndarray) -> float:
-    nb = np.linalg.norm(rhs)
-    nr = np.linalg.norm(r)
-    return float(nr / nb) if nb > 0 else float(nr)
+    # ||x|| = sqrt(x . x), as np.linalg.norm computes it for a vector
+    nb = math.sqrt(float(np.dot(rhs, rhs)))
+    nr = math.sqrt(float(np.dot(r, r)))
+    return nr / nb if nb > 0 else nr
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -108,10 +113,10 @@ def apply_inverse_mass(J, row_bodies, inv_mass, inv_inertia_world, out=None) -> 
     valid = row_bodies >= 0
     b = np.where(valid, row_bodies, 0)
     # (M^-1 J^T)_lin = J_lin / m_b
-    np.multiply(inv_mass[b][..., None], J[..., :3], out=out[..., :3])
+    np.multiply(np.take(inv_mass, b)[..., None], J[..., :3], out=out[..., :3])
     # (M^-1 J^T)_ang = I_b^-1 J_ang  (world frame)
-    out[..., 3:] = np.einsum("rsij,rsj->rsi", inv_inertia_world[b], J[..., 3:])
-    out[~valid] = 0.0
+    out[..., 3:] = np.matmul(np.take(inv_inertia_world, b, axis=0), J[..., 3:, None])[..., 0]
+    np.copyto(out, 0.0, where=~valid[..., None])
     return out
 
 
@@ -132,6 +137,41 @@ def assemble_dense(J, row_bodies, inv_mass, inv_inertia_world, out=None) -> np.n
     return A
 
 
+class DensePattern:
+    """Which slot pairs of J M^-1 J^T share a body, for one active row set: `assemble_dense` without the
+    per-step comparisons, as one (2m x 6) (6 x 2m) product of all slots and a fixed mask.
+
+    row_bodies (m,2) the slots it was built from; safe (2m,) their bodies, slot 2r+s for row r, with WORLD read
+    as body 0 (masked out below); same (2m,2m) 1.0 where slots 2r+s and 2c+t name the same body, not the world.
+    """
+
+    def __init__(self, row_bodies):
+        rb = np.asarray(row_bodies, dtype=np.int64).reshape(-1, 2)
+        self.m = len(rb)
+        self.row_bodies = rb
+        slots = rb.reshape(-1)
+        self.safe = np.where(slots >= 0, slots, 0)
+        self.same = ((slots[:, None] == slots[None, :]) & (slots >= 0)[:, None]).astype(float)
+
+    def assemble(self, J, inv_mass, inv_inertia_world) -> np.ndarray:
+        """A (m,m) = J M^-1 J^T from J (m,2,6), inv_mass (n,), inv_inertia_world (n,3,3)."""
+        b, J = self.safe, J.reshape(2 * self.m, 6)  # one row per slot
+        MJ = np.empty(J.shape)
+        # (M^-1 J^T)_lin = J_lin / m_b,  (M^-1 J^T)_ang = I_b^-1 J_ang  (world frame)
+        np.multiply(inv_mass.take(b)[:, None], J[:, :3], out=MJ[:, :3])
+        MJ[:, 3:] = np.matmul(inv_inertia_world.take(b, axis=0), J[:, 3:, None])[:, :, 0]
+        # P[2r+s, 2c+t] = J[r,s] . (M^-1 J^T)[c,t] where both slots name the same body, else 0
+        P = np.matmul(J, MJ.T)
+        P *= self.same
+        # A[r,c] = sum over the four slot pairings (s,t) of P[2r+s, 2c+t]: columns first, then rows
+        P = P[:, 0::2] + P[:, 1::2]
+        return P[0::2] + P[1::2]
+
+    def solve(self, J, inv_mass, inv_inertia_world, rhs) -> tuple[np.ndarray, "SolveInfo"]:
+        """lam with (J M^-1 J^T) lam = rhs by `solve_dense`."""
+        return solve_dense(self.assemble(J, inv_mass, inv_inertia_world), rhs)
+
+
 def _pinv_solve(A, rhs):
     """Minimum-norm least-squares lam = A^+ rhs by symmetric eigendecomposition; returns (lam, rank)."""
     w, V = np.linalg.eigh(A)
@@ -146,29 +186,27 @@ def _pinv_solve(A, rhs):
 def solve_dense(A, rhs) -> tuple[np.ndarray, SolveInfo]:
     """Solve A lam = rhs, A (m,m) symmetric positive semi-definite. Cholesky; pseudo-inverse if A is singular
     (a pivot below RANK_RTOL * max diag), Cholesky fails, or the residual exceeds RESIDUAL_RTOL."""
-    rhs = np.asarray(rhs, dtype=float)
+    A, rhs = np.asarray(A, dtype=float), np.asarray(rhs, dtype=float)
     m = len(rhs)
     if m == 0:
         return np.zeros(0), SolveInfo("cholesky", 0.0, False, 0)
-    scale = float(np.max(np.diag(A)))
-    note = ""
-    if scale > 0:
-        try:
-            c, low = scipy.linalg.cho_factor(A, lower=True, check_finite=False)
-            min_pivot = float(np.min(np.diag(c))) ** 2
-            if min_pivot > RANK_RTOL * scale:
-                lam = scipy.linalg.cho_solve((c, low), rhs, check_finite=False)
-                res = _relative_residual(A @ lam - rhs, rhs) if np.all(np.isfinite(lam)) else np.inf
-                if res <= RESIDUAL_RTOL:
-                    return lam, SolveInfo("cholesky", res, False)
-                note = f"cholesky residual {res:.1e}"
-            else:
-                note = f"cholesky pivot {min_pivot / scale:.1e} of max diagonal"
-        except (np.linalg.LinAlgError, ValueError):
-            note = "cholesky failed (not positive definite)"
-    else:
-        note = "A is zero"
-    return _dense_fallback(A, rhs, note)
+    scale = float(np.maximum.reduce(A.diagonal()))
+    if not scale > 0:
+        return _dense_fallback(A, rhs, "A is zero")
+    # LAPACK potrf / potrs directly: what scipy's cho_factor / cho_solve call, without their per-call checks
+    c, info = _POTRF(A, lower=1, clean=0)
+    if info != 0:
+        return _dense_fallback(A, rhs, "cholesky failed (not positive definite)")
+    min_pivot = float(np.minimum.reduce(c.diagonal())) ** 2
+    if not min_pivot > RANK_RTOL * scale:
+        return _dense_fallback(A, rhs, f"cholesky pivot {min_pivot / scale:.1e} of max diagonal")
+    lam, _ = _POTRS(c, rhs, lower=1)
+    res = _relative_residual(A @ lam - rhs, rhs)
+    # a non-finite lam gives a non-finite residual
+    res = res if math.isfinite(res) else math.inf
+    if res <= RESIDUAL_RTOL:
+        return lam, SolveInfo("cholesky", res, False)
+    return _dense_fallback(A, rhs, f"cholesky residual {res:.1e}")
 
 
 def _dense_fallback(A, rhs, note):
@@ -194,6 +232,7 @@ class SparsePattern:
 
     A[r,c] += J[pr,ps] . (M^-1 J^T)[qr,qs] for every pair of (row, slot) touching the same dynamic body;
     the pair lands in data[p_dest]. indices, indptr: CSC arrays; diag (m,) data index of A[i,i].
+    p_slot, q_slot: the same pairs as flat slot indices 2 row + slot (one gather each per assembly).
     """
 
     m: int
@@ -206,6 +245,10 @@ class SparsePattern:
     qr: np.ndarray
     qs: np.ndarray
     p_dest: np.ndarray
+
+    def __post_init__(self):
+        self.p_slot, self.q_slot = 2 * self.pr + self.ps, 2 * self.qr + self.qs
+        self._matrix = None  # the CSC matrix `assemble` refills
 
     @classmethod
     def build(cls, row_bodies, n_bodies, dynamic_mask) -> "SparsePattern":
@@ -234,10 +277,19 @@ class SparsePattern:
         return cls(m, rb, rows_of_keys, indptr, inverse[len(pr):], pr, ps, qr, qs, p_dest)
 
     def assemble(self, J, MJ) -> scipy.sparse.csc_matrix:
-        """A = J M^-1 J^T as CSC from J (m,2,6) and MJ = apply_inverse_mass(...) (m,2,6)."""
-        vals = np.einsum("pk,pk->p", J[self.pr, self.ps], MJ[self.qr, self.qs])
+        """A = J M^-1 J^T as CSC from J (m,2,6) and MJ = apply_inverse_mass(...) (m,2,6).
+
+        The structure never changes, so the matrix object is built once and its data refilled: the result is
+        valid until the next call.
+        """
+        J_slot, MJ_slot = np.reshape(J, (-1, 6)), np.reshape(MJ, (-1, 6))
+        vals = np.einsum("pk,pk->p", np.take(J_slot, self.p_slot, axis=0), np.take(MJ_slot, self.q_slot, axis=0))
         data = np.bincount(self.p_dest, weights=vals, minlength=len(self.indices))
-        return scipy.sparse.csc_matrix((data, self.indices, self.indptr), shape=(self.m, self.m))
+        if self._matrix is None:
+            self._matrix = scipy.sparse.csc_matrix((data, self.indices, self.indptr), shape=(self.m, self.m))
+        else:
+            self._matrix.data[:] = data
+        return self._matrix
 
 
 def _splu(A):

@@ -6,10 +6,12 @@ slot, w the world angular velocity and r = R p the world arm of a body point p. 
 start .. start + ROWS k (instance i's rows at start + ROWS i ...) and returns ROWS k. A WORLD slot is read as
 identity pose and zero velocity, gets a zero J block and row_bodies -1. "bias" below means the value of
 d2C/dt2 when every body has zero linear and angular acceleration (a = 0, alpha = 0).
+
+The kernels run four times per RK4 step on a handful of instances, so numpy's per-call cost is what they spend:
+they read a `WorldPaddedFrame` (a plain BodyFrame is padded on entry), whose extra last row is the world, and
+gather both slots of a family with one index, with no masks; rows_reference.py is the slow, obvious oracle.
 """
 from __future__ import annotations
-
-from typing import NamedTuple
 
 import numpy as np
 
@@ -25,106 +27,169 @@ from isaac_runtime.constraints.layout import (
     PointToPoint,
     RowBlock,
 )
-from isaac_runtime.rotation import quat_conjugate, quat_multiply, quat_to_matrix, skew
+from isaac_runtime.rotation import cross, quat_conjugate, quat_multiply, quat_to_matrix, skew
 
+_EYE = np.eye(3)
 _IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
 
 
-class _Slot(NamedTuple):
-    """Pose and velocity of the body in one slot of every instance (k,...); WORLD rows are identity / zero."""
+class WorldPaddedFrame(BodyFrame):
+    """A BodyFrame whose arrays (n+1, ...) end with one extra row for the world: x, v, w zero, q = (1, 0, 0, 0),
+    R = I. Index WORLD = -1 then reads that row, so the kernels gather both slots of every instance with plain
+    indexing and no masks. `Dynamics` builds one per evaluation; `pad_world` makes one from any frame."""
 
-    x: np.ndarray  # (k,3)
-    q: np.ndarray  # (k,4)
-    R: np.ndarray  # (k,3,3)
-    v: np.ndarray  # (k,3)
-    w: np.ndarray  # (k,3)
+
+def pad_world(frame: BodyFrame) -> WorldPaddedFrame:
+    """The frame itself if it is world-padded already, else a copy with the world row appended."""
+    if isinstance(frame, WorldPaddedFrame):
+        return frame
+    zero = np.zeros((1, 3))
+    return WorldPaddedFrame(
+        np.concatenate((frame.x, zero)), np.concatenate((frame.q, _IDENTITY_QUAT[None])),
+        np.concatenate((frame.v, zero)), np.concatenate((frame.w, zero)),
+        np.concatenate((frame.R, _EYE[None])), frame.t,
+    )
+
+
+class _Slot:
+    """Pose and velocity of the body in one slot of every instance, gathered from a world-padded frame on first
+    use (a kernel reads only what it needs); WORLD entries read identity pose and zero velocity. `body` is (k,)
+    for one slot, or (2,k) for both slots of a family at once: every array then gains that leading axis."""
+
+    __slots__ = ("_frame", "_body", "_x", "_q", "_R", "_v", "_w")
+
+    def __init__(self, frame: BodyFrame, body: np.ndarray):
+        self._frame, self._body = pad_world(frame), body
+        self._x = self._q = self._R = self._v = self._w = None
+
+    @property
+    def x(self) -> np.ndarray:  # (k,3)
+        if self._x is None:
+            self._x = self._frame.x.take(self._body, axis=0)
+        return self._x
+
+    @property
+    def q(self) -> np.ndarray:  # (k,4)
+        if self._q is None:
+            self._q = self._frame.q.take(self._body, axis=0)
+        return self._q
+
+    @property
+    def R(self) -> np.ndarray:  # (k,3,3)
+        if self._R is None:
+            self._R = self._frame.R.take(self._body, axis=0)
+        return self._R
+
+    @property
+    def v(self) -> np.ndarray:  # (k,3)
+        if self._v is None:
+            self._v = self._frame.v.take(self._body, axis=0)
+        return self._v
+
+    @property
+    def w(self) -> np.ndarray:  # (k,3)
+        if self._w is None:
+            self._w = self._frame.w.take(self._body, axis=0)
+        return self._w
 
 
 def _slot(frame: BodyFrame, body: np.ndarray) -> _Slot:
-    """Gather the state of `body` (k,) from the frame; WORLD (-1) entries become the fixed world frame."""
-    k = len(body)
-    live = body != WORLD
-    idx = body[live]
-    x, v, w = np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3))
-    q, R = np.tile(_IDENTITY_QUAT, (k, 1)), np.tile(np.eye(3), (k, 1, 1))
-    x[live], q[live], R[live] = frame.x[idx], frame.q[idx], frame.R[idx]
-    v[live], w[live] = frame.v[idx], frame.w[idx]
-    return _Slot(x, q, R, v, w)
+    """The state of `body` (k,) in the frame; WORLD (-1) entries are the fixed world frame."""
+    return _Slot(frame, body)
+
+
+def _slots(frame: BodyFrame, body_a: np.ndarray, body_b: np.ndarray) -> _Slot:
+    """The state of both slots at once: arrays (2,k,...), index 0 for body_a, 1 for body_b."""
+    return _Slot(frame, _pair(body_a, body_b))
 
 
 def _rot(R: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """r = R p for stacks (k,3,3) x (k,3)."""
-    return np.einsum("kij,kj->ki", R, p)
+    """r = R p for stacks (...,3,3) x (...,3)."""
+    return np.matmul(R, p[..., None])[..., 0]
 
 
 def _rot_t(R: np.ndarray, p: np.ndarray) -> np.ndarray:
     """R^T p for stacks (k,3,3) x (k,3)."""
-    return np.einsum("kji,kj->ki", R, p)
+    return np.matmul(p[:, None, :], R)[:, 0, :]
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise dot product of (k,3) stacks."""
-    return np.einsum("ki,ki->k", a, b)
+    return np.add.reduce(a * b, axis=-1)
 
 
 def _centripetal(w: np.ndarray, r: np.ndarray) -> np.ndarray:
     """w x (w x r): the acceleration of a body-fixed vector r under constant angular velocity w."""
-    return np.cross(w, np.cross(w, r))
+    # w x (w x r) = w (w . r) - r (w . w)
+    return w * np.add.reduce(w * r, axis=-1, keepdims=True) - r * np.add.reduce(w * w, axis=-1, keepdims=True)
+
+
+def _pair(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(2, ...) stack of a and b (np.stack without its argument checks)."""
+    return np.concatenate((a[None], b[None]))
 
 
 def _emit(out: RowBlock, start: int, rows: int, body_a, body_b, C, J, ct, bias, velocity_only: bool) -> int:
-    """Write k instances of `rows` rows each: C, ct, bias (k, rows) or (k,); J (k, rows, 2, 6) or (k, 2, 6)."""
+    """Write k instances of `rows` rows each: body_a (k,), body_b (k,) or WORLD for all; C, ct, bias (k, rows)
+    or (k,) or a scalar; J (k, rows, 2, 6) or (k, 2, 6)."""
     m = rows * len(body_a)
     end = start + m
-    bodies = np.repeat(np.stack((body_a, body_b), axis=-1), rows, axis=0)
-    J = np.asarray(J, dtype=float).reshape(m, 2, 6)  # a fresh array in every kernel: masked in place
-    # a WORLD slot has no degrees of freedom: zero block
-    J[bodies == WORLD] = 0.0
-    out.row_bodies[start:end] = bodies
-    out.J[start:end] = J
-    out.C[start:end] = np.reshape(C, m)
-    out.ct[start:end] = np.reshape(ct, m)
-    out.bias[start:end] = np.reshape(bias, m)
+    bodies = out.row_bodies[start:end]
+    bodies[:, 0] = body_a.repeat(rows)
+    bodies[:, 1] = body_b.repeat(rows) if isinstance(body_b, np.ndarray) else body_b
+    # a WORLD slot has no degrees of freedom: zero block (the kernels' world blocks are finite)
+    np.multiply(J.reshape(m, 2, 6), (bodies != WORLD)[:, :, None], out=out.J[start:end])
+    out.C[start:end] = _flat(C)
+    out.ct[start:end] = _flat(ct)
+    out.bias[start:end] = _flat(bias)
     out.velocity_only[start:end] = velocity_only
     return m
 
 
-def _point_jacobian(r: np.ndarray, sign: float) -> np.ndarray:
-    """sign * d(x + r)/d(v, w) per world axis: [I, -[r]x] (k,3,6), since d(x + r)/dt = v + w x r = v - [r]x w."""
-    k = len(r)
-    block = np.empty((k, 3, 6))
-    block[:, :, :3] = np.eye(3)
-    block[:, :, 3:] = -skew(r)
-    return sign * block
+def _flat(value):
+    """Row values in row order: (k, rows) arrays flattened, scalars as they are."""
+    return value.reshape(-1) if isinstance(value, np.ndarray) else value
+
+
+# J_a = [I, -[r_a]x] and J_b = -[I, -[r_b]x]: the sign of each slot of a point row, and its linear block
+_SLOT_SIGN = np.array([1.0, -1.0])
+_SLOT_LINEAR = _SLOT_SIGN[:, None, None, None] * _EYE  # (2,1,3,3)
 
 
 def point_to_point_rows(fam: PointToPoint, frame: BodyFrame, out: RowBlock, start: int) -> int:
-    """Ball joint, 3 world-axis rows per instance."""
-    a, b = _slot(frame, fam.body_a), _slot(frame, fam.body_b)
+    """Ball joint, 3 world-axis rows per instance. Both slots are evaluated at once: arrays (2,k,...)."""
+    ab = _slots(frame, fam.body_a, fam.body_b)
     # r = R p (for a WORLD b: R = I, x = 0, so x_b + r_b is the world point point_b)
-    r_a, r_b = _rot(a.R, fam.point_a), _rot(b.R, fam.point_b)
+    r = _rot(ab.R, _pair(fam.point_a, fam.point_b))
     # C = x_a + R_a p_a - x_b - R_b p_b
-    C = a.x + r_a - b.x - r_b
-    # dC/dt = v_a + w_a x r_a - v_b - w_b x r_b  =>  J_a = [I, -[r_a]x], J_b = [-I, [r_b]x]
-    J = np.stack((_point_jacobian(r_a, 1.0), _point_jacobian(r_b, -1.0)), axis=2)
+    P = ab.x + r
+    C = P[0] - P[1]
+    # dC/dt = v_a + w_a x r_a - v_b - w_b x r_b = sign_s (v_s - [r_s]x w_s) summed over the slots s:
+    #   J_s = sign_s [I, -[r_s]x]   (rows: world axes)
+    J = np.empty((len(C), 3, 2, 6))
+    per_slot = J.transpose(2, 0, 1, 3)  # (2,k,3,6) view
+    per_slot[..., :3] = _SLOT_LINEAR
+    per_slot[..., 3:] = skew(-_SLOT_SIGN[:, None, None] * r)
     # bias = w_a x (w_a x r_a) - w_b x (w_b x r_b)
-    bias = _centripetal(a.w, r_a) - _centripetal(b.w, r_b)
-    return _emit(out, start, 3, fam.body_a, fam.body_b, C, J, np.zeros_like(C), bias, False)
+    centripetal = _centripetal(ab.w, r)
+    bias = centripetal[0] - centripetal[1]
+    return _emit(out, start, 3, fam.body_a, fam.body_b, C, J, 0.0, bias, False)
 
 
 def point_to_nail_rows(fam: PointToNail, frame: BodyFrame, out: RowBlock, start: int) -> int:
     """Body point held at the world point P(t), 3 world-axis rows per instance; second slot is WORLD."""
     a = _slot(frame, fam.body)
-    world = np.full_like(fam.body, WORLD)
     r = _rot(a.R, fam.point)
     # C = x + R p - P(t)
     C = a.x + r - fam.target
     # dC/dt = v + w x r - dP/dt  =>  J = [I, -[r]x], ct = -dP/dt
-    J = np.stack((_point_jacobian(r, 1.0), np.zeros((len(r), 3, 6))), axis=2)
+    J = np.zeros((len(r), 3, 2, 6))
+    J[:, :, 0, :3] = _EYE
+    J[:, :, 0, 3:] = skew(-r)
     ct = -fam.target_velocity
     # bias = w x (w x r) - d2P/dt2
     bias = _centripetal(a.w, r) - fam.target_acceleration
-    return _emit(out, start, 3, fam.body, world, C, J, ct, bias, False)
+    return _emit(out, start, 3, fam.body, WORLD, C, J, ct, bias, False)
 
 
 def orientation_rows(fam: Orientation, frame: BodyFrame, out: RowBlock, start: int) -> int:
@@ -134,16 +199,16 @@ def orientation_rows(fam: Orientation, frame: BodyFrame, out: RowBlock, start: i
     # C = T . N
     C = _dot(T, N)
     # dC/dt = (w_a x T) . N + T . (w_b x N) = w_a . (T x N) + w_b . (N x T)  =>  J_a = [0, T x N], J_b = [0, N x T]
-    TxN = np.cross(T, N)
+    TxN = cross(T, N)
     J = np.zeros((len(C), 2, 6))
     J[:, 0, 3:] = TxN
     J[:, 1, 3:] = -TxN
     # bias (Tdot = w_a x T, Ndot = w_b x N, Tddot = w_a x (w_a x T) at alpha = 0):
     #   d2C/dt2 = Tddot . N + 2 Tdot . Ndot + T . Nddot
-    bias = _dot(_centripetal(a.w, T), N) + 2.0 * _dot(np.cross(a.w, T), np.cross(b.w, N)) + _dot(
+    bias = _dot(_centripetal(a.w, T), N) + 2.0 * _dot(cross(a.w, T), cross(b.w, N)) + _dot(
         T, _centripetal(b.w, N)
     )
-    return _emit(out, start, 1, fam.body_a, fam.body_b, C, J, np.zeros_like(C), bias, False)
+    return _emit(out, start, 1, fam.body_a, fam.body_b, C, J, 0.0, bias, False)
 
 
 def point_on_plane_rows(fam: PointOnPlane, frame: BodyFrame, out: RowBlock, start: int) -> int:
@@ -158,14 +223,14 @@ def point_on_plane_rows(fam: PointOnPlane, frame: BodyFrame, out: RowBlock, star
     #   w_b . (N x d) - w_b . (r_s x N) = w_b . (N x (P - x_b)), i.e. b's material point at P:
     #   J_a = [N, r_a x N], J_b = [-N, -(P - x_b) x N]
     J = np.empty((len(C), 2, 6))
-    J[:, 0, :3], J[:, 0, 3:] = N, np.cross(r_a, N)
-    J[:, 1, :3], J[:, 1, 3:] = -N, -np.cross(P - b.x, N)
+    J[:, 0, :3], J[:, 0, 3:] = N, cross(r_a, N)
+    J[:, 1, :3], J[:, 1, 3:] = -N, -cross(P - b.x, N)
     # bias = Nddot . d + 2 Ndot . ddot + N . dddot, with Nddot = w_b x (w_b x N) and
     #   dddot = w_a x (w_a x r_a) - w_b x (w_b x r_s)  (all at a = 0, alpha = 0)
-    d_dot = a.v + np.cross(a.w, r_a) - b.v - np.cross(b.w, r_s)
+    d_dot = a.v + cross(a.w, r_a) - b.v - cross(b.w, r_s)
     d_ddot = _centripetal(a.w, r_a) - _centripetal(b.w, r_s)
-    bias = _dot(_centripetal(b.w, N), d) + 2.0 * _dot(np.cross(b.w, N), d_dot) + _dot(N, d_ddot)
-    return _emit(out, start, 1, fam.body_a, fam.body_b, C, J, np.zeros_like(C), bias, False)
+    bias = _dot(_centripetal(b.w, N), d) + 2.0 * _dot(cross(b.w, N), d_dot) + _dot(N, d_ddot)
+    return _emit(out, start, 1, fam.body_a, fam.body_b, C, J, 0.0, bias, False)
 
 
 def gear_to_gear_rows(fam: GearToGear, frame: BodyFrame, out: RowBlock, start: int) -> int:
@@ -185,7 +250,7 @@ def gear_to_weight_rows(fam: GearToWeight, frame: BodyFrame, out: RowBlock, star
     """Velocity row (w_gear x arm) . d - v_weight . d = 0 with arm, d world-fixed, 1 row per instance."""
     # Cv = w_gear . (arm x d) - v_weight . d  =>  J_gear = [0, arm x d], J_weight = [-d, 0]
     J = np.zeros((len(fam.gear), 2, 6))
-    J[:, 0, 3:] = np.cross(fam.arm, fam.direction)
+    J[:, 0, 3:] = cross(fam.arm, fam.direction)
     J[:, 1, :3] = -fam.direction
     # bias = Jdot v = 0: arm and d are fixed in the world, so J does not change
     zero = np.zeros(len(fam.gear))
@@ -199,9 +264,9 @@ def _element_translational(fam: Element, a: _Slot, b: _Slot):
     C = _dot(e, dx) - fam.offset
     # dC/dt = (w_b x e) . dx + e . dv = e . (v_a - v_b) + w_b . (e x dx)  =>  J_a = [e, 0], J_b = [-e, e x dx]
     J = np.zeros((len(C), 2, 6))
-    J[:, 0, :3], J[:, 1, :3], J[:, 1, 3:] = e, -e, np.cross(e, dx)
+    J[:, 0, :3], J[:, 1, :3], J[:, 1, 3:] = e, -e, cross(e, dx)
     # bias = (w_b x (w_b x e)) . dx + 2 (w_b x e) . dv
-    bias = _dot(_centripetal(b.w, e), dx) + 2.0 * _dot(np.cross(b.w, e), dv)
+    bias = _dot(_centripetal(b.w, e), dx) + 2.0 * _dot(cross(b.w, e), dv)
     return C, J, bias
 
 
@@ -214,17 +279,17 @@ def _element_rotational(fam: Element, a: _Slot, b: _Slot):
     # with qdot = 0.5 (0, w) q: q_err' = 0.5 (0, om) q_err, om = R_b^T (w_a - w_b) (relative, in b's frame), so
     #   u' = 0.5 (s om + om x u), s' = -0.5 om . u, and dC/dt = axis . (s om + om x u) = om . g,
     #   g = s axis + u x axis  =>  J_a = [0, R_b g], J_b = [0, -R_b g]
-    g = s[:, None] * axis + np.cross(u, axis)
+    g = s[:, None] * axis + cross(u, axis)
     G = _rot(b.R, g)
     J = np.zeros((len(C), 2, 6))
     J[:, 0, 3:], J[:, 1, 3:] = G, -G
     # bias = om' . g + om . g' with (at alpha = 0, R_b' = [w_b]x R_b) om' = -R_b^T (w_b x (w_a - w_b))
     #   = R_b^T (w_a x w_b), and g' = s' axis + u' x axis
     om = _rot_t(b.R, a.w - b.w)
-    om_dot = _rot_t(b.R, np.cross(a.w, b.w))
+    om_dot = _rot_t(b.R, cross(a.w, b.w))
     s_dot = -0.5 * _dot(om, u)
-    u_dot = 0.5 * (s[:, None] * om + np.cross(om, u))
-    g_dot = s_dot[:, None] * axis + np.cross(u_dot, axis)
+    u_dot = 0.5 * (s[:, None] * om + cross(om, u))
+    g_dot = s_dot[:, None] * axis + cross(u_dot, axis)
     bias = _dot(om_dot, g) + _dot(om, g_dot)
     return C, J, bias
 
@@ -238,7 +303,7 @@ def element_rows(fam: Element, frame: BodyFrame, out: RowBlock, start: int) -> i
     C = np.where(rot, C_r, C_t)
     J = np.where(rot[:, None, None], J_r, J_t)
     bias = np.where(rot, bias_r, bias_t)
-    return _emit(out, start, 1, fam.body_a, fam.body_b, C, J, np.zeros_like(C), bias, False)
+    return _emit(out, start, 1, fam.body_a, fam.body_b, C, J, 0.0, bias, False)
 
 
 def capture_element_references(fam: Element, x0: np.ndarray, q0: np.ndarray) -> None:

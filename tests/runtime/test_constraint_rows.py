@@ -20,7 +20,13 @@ from isaac_runtime.constraints.layout import (
     PointToPoint,
     RowBlock,
 )
-from isaac_runtime.constraints.rows import capture_element_references, row_count, write_rows
+from isaac_runtime.constraints.rows import (
+    WorldPaddedFrame,
+    capture_element_references,
+    pad_world,
+    row_count,
+    write_rows,
+)
 from isaac_runtime.constraints.rows_reference import reference_rows
 from isaac_runtime.rotation import (
     quat_from_axis_angle,
@@ -153,6 +159,20 @@ def test_vectorized_matches_reference(name, seed):
     # rows outside [start, start + m) are untouched
     assert np.all(out.C[:start] == 7.0) and np.all(out.C[start + m:] == 7.0)
     assert np.all(out.J[:start] == 7.0) and np.all(out.J[start + m:] == 7.0)
+
+
+@pytest.mark.parametrize("name", FAMILIES)
+def test_world_padded_frame_gives_the_same_rows(name):
+    """The runtime hands the kernels frames with a world row appended (index WORLD = -1 reads it); a plain
+    frame is padded on entry. Both give the same rows, bit for bit."""
+    fam, frame, _ = _scene(name, 5)
+    padded = pad_world(frame)
+    assert isinstance(padded, WorldPaddedFrame) and pad_world(padded) is padded
+    assert len(padded.x) == N_BODIES + 1 and np.array_equal(padded.R[-1], np.eye(3))
+    assert np.array_equal(padded.q[-1], [1.0, 0.0, 0.0, 0.0]) and not padded.v[-1].any() and not padded.w[-1].any()
+    plain, fast = _rows(fam, frame), _rows(fam, padded)
+    for key in ("C", "J", "ct", "bias", "row_bodies", "velocity_only"):
+        np.testing.assert_array_equal(getattr(fast, key), getattr(plain, key), err_msg=key)
 
 
 def _gradient_error(name, J_hook=None):

@@ -1,9 +1,10 @@
-"""runtime/linsolve.py: dense assembly against a loop-built J M^-1 J^T; sparse and tree against dense; singular
-systems stay finite and say so."""
+"""runtime/linsolve.py: dense assembly against a loop-built J M^-1 J^T; the dense pattern, sparse and tree against
+dense; singular systems stay finite and say so."""
 import numpy as np
 import pytest
 
 from isaac_runtime.linsolve import (
+    DensePattern,
     SolveInfo,
     SparsePattern,
     TreeSolver,
@@ -116,6 +117,7 @@ def loop_built_A(s, J, rb):
 def all_solves(s, J, rb, g, rhs):
     A = s.dense(J, rb)
     out = {"dense": solve_dense(A, rhs)}
+    out["dense pattern"] = DensePattern(rb).solve(J, s.inv_mass, s.inv_inertia, rhs)
     pattern = SparsePattern.build(rb, s.n, s.dynamic)
     out["sparse"] = solve_sparse(pattern, J, s.inv_mass, s.inv_inertia, rhs)
     tree = TreeSolver.build(rb, g, s.n, s.dynamic)
@@ -133,6 +135,22 @@ def test_dense_assembly_matches_loop(make):
     assert assemble_dense(J, rb, s.inv_mass, s.inv_inertia, out=out) is out
     MJ = apply_inverse_mass(J, rb, s.inv_mass, s.inv_inertia, np.empty_like(J))
     assert np.all(MJ[rb < 0] == 0)
+    # the once-per-epoch pattern: the same matrix from one product of all slots and a fixed mask
+    pattern = DensePattern(rb)
+    np.testing.assert_allclose(pattern.assemble(J, s.inv_mass, s.inv_inertia), out, rtol=1e-12, atol=1e-12)
+    J2 = s.rng.normal(size=J.shape) * (rb >= 0)[..., None]  # reused with other Jacobians
+    np.testing.assert_allclose(pattern.assemble(J2, s.inv_mass, s.inv_inertia), s.dense(J2, rb), rtol=1e-12,
+                               atol=1e-12)
+
+
+@pytest.mark.parametrize("make", [chain, branched, floating])
+def test_sparse_assembly_matches_dense_and_is_refilled(make):
+    s = make(np.random.default_rng(2), 9)
+    J, rb, _ = s.arrays(shuffle=True)
+    pattern = SparsePattern.build(rb, s.n, s.dynamic)
+    for J_now in (J, s.rng.normal(size=J.shape) * (rb >= 0)[..., None]):
+        A = pattern.assemble(J_now, apply_inverse_mass(J_now, rb, s.inv_mass, s.inv_inertia))
+        np.testing.assert_allclose(A.toarray(), s.dense(J_now, rb), rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -143,12 +161,12 @@ def test_sparse_and_tree_match_dense(make, seed):
     J, rb, g = s.arrays(shuffle=seed % 2 == 1)
     rhs = rng.normal(size=len(J))
     A, out = all_solves(s, J, rb, g, rhs)
-    assert set(out) == {"dense", "sparse", "tree"}
+    assert set(out) == {"dense", "dense pattern", "sparse", "tree"}
     lam0, info0 = out["dense"]
     assert info0.method == "cholesky" and not info0.rank_deficient and info0.residual < 1e-10
-    for name in ("sparse", "tree"):
+    for name in ("dense pattern", "sparse", "tree"):
         lam, info = out[name]
-        assert info.method == {"sparse": "lu", "tree": "tree"}[name], info
+        assert info.method == {"dense pattern": "cholesky", "sparse": "lu", "tree": "tree"}[name], info
         assert not info.rank_deficient and info.residual < 1e-10
         assert np.linalg.norm(lam - lam0) <= 1e-9 * np.linalg.norm(lam0), name
 
