@@ -1,0 +1,144 @@
+"""Collisions and impacts (PHYSICS.md section 5): the collision plan, compiled once per scene.
+
+    compile_collisions(scene, plan) -> CollisionPlan | None      None: no pair can ever touch (no stage at all)
+    CollisionPlan.start(simulation) -> the run's stage, with before_step(h, epoch) and after_step(h, epoch)
+
+The package, one stage per file:
+    shapes.py     collision geometry of every body, bounding boxes
+    pairs.py      exclusion (once) and the sort-and-sweep broad phase (every step)
+    narrow.py     closed-form contact tests (spheres, capsules, cylinders, planes; boxes.py: boxes)
+    meshes.py     OBJ/STL meshes and every pair without a closed form, through python-fcl (imported only then)
+    response.py   impulses solved with the joint rows, impacts in generations, friction, position correction
+    lcp.py        the contact problem (direct solve, then projected Gauss-Seidel)
+    collider.py   the stage of the dynamics plan: scan, time of impact, resolve
+    procedural.py the stage of the procedural plan (the same, re-running its own step to locate impacts)
+    events.py     contact events for events.json and the audio graph
+docs/collisions.md says how it behaves and where its limits are.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..signals import asset_folders
+from .narrow import needs_fcl
+from .pairs import count_pairs, excluded_keys
+from .shapes import KIND_NAMES, build_table
+
+# contacts are kept (and act) while the surfaces are up to this far apart, m; boxes grow by it in the broad phase
+CONTACT_MARGIN = 1e-4
+# friction and restitution of a body without a material (the language's material defaults)
+DEFAULT_FRICTION = 0.5
+DEFAULT_RESTITUTION = 0.5
+
+
+@dataclass
+class CollisionPlan:
+    """What is decided once: which bodies collide, their geometry and materials, which pairs are excluded.
+
+    collidable (c,) body indices; excluded: sorted pair keys i * n + j of excluded pairs; pairs: how many pairs
+    can touch; reasons: how many were excluded and why; friction, restitution (n,), has_material (n,) bool;
+    fcl_bodies: bodies that go through python-fcl (empty: fcl is never imported); margin (m)."""
+
+    table: object
+    collidable: np.ndarray
+    excluded: np.ndarray
+    pairs: int
+    reasons: dict
+    friction: np.ndarray
+    restitution: np.ndarray
+    has_material: np.ndarray
+    fcl_bodies: np.ndarray
+    margin: float
+    kinds: dict
+
+    def start(self, simulation):
+        if simulation.procedural is not None:
+            from .procedural import ProceduralCollider
+
+            return ProceduralCollider(self, simulation)
+        from .collider import Collider
+
+        return Collider(self, simulation)
+
+    def mix(self, a, b):
+        """Friction and restitution of contacts between bodies a and b (k,): friction sqrt(mu_a mu_b),
+        restitution max(e_a, e_b) (Box2D's rules); a body without a material takes the other's values, two
+        without take the defaults."""
+        ha, hb = self.has_material[a], self.has_material[b]
+        mu = np.where(ha & hb, np.sqrt(self.friction[a] * self.friction[b]),
+                      np.where(ha, self.friction[a], np.where(hb, self.friction[b], DEFAULT_FRICTION)))
+        e = np.where(ha & hb, np.maximum(self.restitution[a], self.restitution[b]),
+                     np.where(ha, self.restitution[a], np.where(hb, self.restitution[b], DEFAULT_RESTITUTION)))
+        return mu, e
+
+    def describe(self) -> str:
+        kinds = ", ".join(f"{KIND_NAMES[k]} x{c}" for k, c in sorted(self.kinds.items()))
+        narrow = "closed forms" + (f" + python-fcl ({len(self.fcl_bodies)} bodies)" if len(self.fcl_bodies) else "")
+        reasons = ", ".join(f"{v} {k}" for k, v in self.reasons.items() if v)
+        return (f"collisions: {len(self.collidable)} bodies ({kinds}), {self.pairs} pairs can touch"
+                f"{' (excluded: ' + reasons + ')' if reasons else ''}; narrow phase: {narrow}")
+
+
+def compile_collisions(scene, plan, folder=None) -> CollisionPlan | None:
+    """The collision plan, or None when every pair of collidable bodies is excluded."""
+    collidable = np.array([i for i, b in enumerate(scene.bodies) if b.collide], np.int64)
+    dynamic = plan.dynamic
+    keys = excluded_keys(scene, plan, collidable)
+    excluded = np.union1d(keys["joined"], keys["excluded"])
+    pairs = count_pairs(collidable, dynamic, excluded)
+    if pairs <= 0:
+        return None
+    kinds = _kinds(scene, collidable)
+    fcl_kinds = _kinds_needing_fcl(kinds, collidable, dynamic, excluded, len(scene.bodies))
+    # a mesh is named relative to the scene's folder: the plan's when it knows it, else searched for (signals.py)
+    folders = asset_folders(scene, folder if folder is not None else getattr(plan, "folder", None))
+    table = build_table(scene, [int(i) for i in collidable], folders)
+    fcl_bodies = collidable[np.isin(kinds, list(fcl_kinds))] if fcl_kinds else np.zeros(0, np.int64)
+    friction, restitution, has = _materials(scene)
+    still = int(np.count_nonzero(~dynamic[collidable]))
+    reasons = {"joined by a constraint": len(keys["joined"]),
+               "by `exclude`": len(np.setdiff1d(keys["excluded"], keys["joined"])),
+               "neither dynamic": still * (still - 1) // 2}
+    counted = {int(k): int(c) for k, c in zip(*np.unique(kinds, return_counts=True))}
+    return CollisionPlan(table, collidable, excluded, pairs, reasons, friction, restitution, has, fcl_bodies,
+                         CONTACT_MARGIN, counted)
+
+
+def _kinds(scene, collidable) -> np.ndarray:
+    from .shapes import KINDS
+
+    return np.array([KINDS[scene.bodies[i].shape.type] for i in collidable], np.int64)
+
+
+def _kinds_needing_fcl(kinds, collidable, dynamic, excluded, n) -> set:
+    """Shape kinds that meet, in at least one pair that can touch, a kind with no closed-form test."""
+    needed = set()
+    present = sorted(set(kinds.tolist()))
+    for ka, kb in itertools.combinations_with_replacement(present, 2):
+        if not needs_fcl(ka, kb):
+            continue
+        ia, ib = collidable[kinds == ka], collidable[kinds == kb]
+        total = len(ia) * len(ib) if ka != kb else len(ia) * (len(ia) - 1) // 2
+        sa, sb = int((~dynamic[ia]).sum()), int((~dynamic[ib]).sum())
+        still = sa * sb if ka != kb else sa * (sa - 1) // 2
+        i, j = excluded // n, excluded % n
+        kind_of = np.full(n, -1)
+        kind_of[collidable] = kinds
+        gone = int(np.count_nonzero(((kind_of[i] == ka) & (kind_of[j] == kb)) | ((kind_of[i] == kb) & (kind_of[j] == ka))))
+        if total - still - gone > 0:
+            needed |= {ka, kb}
+    return needed
+
+
+def _materials(scene):
+    n = len(scene.bodies)
+    materials = {m.name: m for m in scene.materials}
+    friction, restitution, has = np.zeros(n), np.zeros(n), np.zeros(n, bool)
+    for i, body in enumerate(scene.bodies):
+        if body.material in materials:
+            m = materials[body.material]
+            friction[i], restitution[i], has[i] = m.friction, m.restitution, True
+    return friction, restitution, has
