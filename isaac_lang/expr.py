@@ -230,9 +230,12 @@ def _evaluate_op(node: Op, env, functions):
     values = [evaluate(a, env, functions) for a in node.args]
     if node.op == "neg":
         return -values[0]
-    sizes = [size_of(a) for a in node.args]
-    a = _lift(values[0], sizes[0], sizes[1])
-    b = _lift(values[1], sizes[1], sizes[0])
+    a, b = values
+    if np.ndim(a) and np.ndim(b):
+        # two arrays: a scalar series (T,) may meet a vector, which only the static sizes tell apart (a plain
+        # number, as at a single time t, broadcasts by itself and skips this)
+        sizes = [size_of(x) for x in node.args]
+        a, b = _lift(a, sizes[0], sizes[1]), _lift(b, sizes[1], sizes[0])
     if node.op == "add":
         return a + b
     if node.op == "sub":
@@ -255,9 +258,11 @@ def _evaluate_call(node: Call, env, functions):
     if node.fn in VECTOR_FUNCTIONS:
         return VECTOR_FUNCTIONS[node.fn](*args)
     if node.fn in SCALAR_FUNCTIONS:
-        sizes = [size_of(a) for a in node.args]
-        widest = max(sizes)
-        return SCALAR_FUNCTIONS[node.fn](*[_lift(v, s, widest) for v, s in zip(args, sizes)])
+        if sum(1 for v in args if np.ndim(v)) > 1:
+            sizes = [size_of(a) for a in node.args]
+            widest = max(sizes)
+            args = [_lift(v, s, widest) for v, s in zip(args, sizes)]
+        return SCALAR_FUNCTIONS[node.fn](*args)
     raise EvaluationError(f"unknown function `{node.fn}`")
 
 
