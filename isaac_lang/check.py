@@ -12,14 +12,15 @@ def check(scene: ir.Scene, reporter: Reporter) -> list[str]:
     warnings: list[str] = []
     for body in scene.bodies:
         if body.motion == "dynamic" and body.inertia is None:
-            reporter.error(f"body `{body.name}` needs an `inertia` (its shape gives none)", _pos(body.source),
+            reporter.error(f"body `{body.name}` needs an `inertia` (its shape gives none)",
+                           SourcePos.parse(body.source),
                            "write `inertia (Ixx, Iyy, Izz) kg*m2`")
     for constraint in scene.constraints:
         if constraint.start >= scene.time.end:
             warnings.append(f"{constraint.source}: constraint `{constraint.name}` starts after the scene ends")
     for exclusion in scene.exclusions:
         if len(set(exclusion.bodies)) != len(exclusion.bodies):
-            reporter.error("a body is named twice in `exclude`", _pos(exclusion.source))
+            reporter.error("a body is named twice in `exclude`", SourcePos.parse(exclusion.source))
     for sound in scene.sounds:
         if sound.trigger == "time" and not (scene.time.start <= sound.time <= scene.time.end):
             warnings.append(f"{sound.source}: sound `{sound.name}` is set outside the scene's time")
@@ -29,12 +30,3 @@ def check(scene: ir.Scene, reporter: Reporter) -> list[str]:
     if scene.solver.step is not None and scene.solver.step > (scene.time.end - scene.time.start):
         warnings.append("the solver step is longer than the whole scene")
     return warnings
-
-
-def _pos(source: str) -> SourcePos | None:
-    """'file:line:col' back to a SourcePos."""
-    try:
-        file, line, col = source.rsplit(":", 2)
-        return SourcePos(file, int(line), int(col))
-    except ValueError:
-        return None

@@ -26,6 +26,15 @@ class SourcePos:
     def __str__(self) -> str:
         return f"{self.file}:{self.line}:{self.col}"
 
+    @classmethod
+    def parse(cls, source: str) -> "SourcePos | None":
+        """'file:line:col' (as the IR keeps positions) back to a SourcePos; None if it is not one."""
+        try:
+            file, line, col = source.rsplit(":", 2)
+            return cls(file, int(line), int(col))
+        except ValueError:
+            return None
+
 
 @dataclass(frozen=True)
 class Diagnostic:

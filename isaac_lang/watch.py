@@ -99,6 +99,7 @@ class Watch:
         self.files = {self.path.resolve()}  # what the last load read, plus files the scene names
         self.good_ir = None  # canonical IR JSON of the last valid scene (the one self.job runs)
         self.last_ok = True  # whether the last load was valid
+        self.scene_error = None  # the diagnostic of the saved scene while it is broken: it stays on the page
         self.count = 0
         self.job: Job | None = None
         self.server = None
@@ -162,6 +163,7 @@ class Watch:
             self.report_error(error, sources)
             return
         self.last_ok = True
+        self.scene_error = None
         self.files = sources.files | {self.path.resolve()} | _named_files(loaded.scene, self.folder)
         for warning in loaded.warnings:
             self.say(f"warning: {warning}")
@@ -185,11 +187,13 @@ class Watch:
     def report_error(self, error: SceneError, sources) -> None:
         text = self.format_error(error, sources)
         kept = f"the last good result (#{self.job.n}) stays" if self.job else "no result yet"
+        self.scene_error = text
+        # the page first, then the terminal: whoever reads the message finds the page already saying it
+        if self.server:
+            self.server.set_status(state="error", diagnostic=text, message=f"scene error: {kept}")
         with self._print_lock:
             print(text, file=sys.stderr, flush=True)
         self.say(f"scene error: {kept}; fix the scene and save")
-        if self.server:
-            self.server.set_status(state="error", diagnostic=text, message=f"scene error: {kept}")
 
     # -- the run --------------------------------------------------------------------------------------------
 
@@ -264,7 +268,10 @@ class Watch:
         message = f"result #{job.n}: {note or state}"
         job.state, job.message, job.failed = state, message, failed or None
         if self.server:
-            self.server.publish(data, state=state, message=message, diagnostic=job.failed)
+            if self.scene_error is not None:  # the last good result goes on running under the broken scene's error
+                self.server.publish(data, state="error", message=message, diagnostic=self.scene_error)
+            else:
+                self.server.publish(data, state=state, message=message, diagnostic=job.failed)
         job.shown_at = time.perf_counter()
         if job.first_latency is None:
             job.first_latency = latency

@@ -132,21 +132,27 @@ def load_envelope(path, attack: float = DEFAULT_ATTACK, release: float = DEFAULT
     return _load_cached(str(path.resolve()), path.stat().st_mtime, float(attack), float(release), bool(normalize))
 
 
-def resolve_asset(name: str, folders) -> Path:
-    """The file a scene names: absolute, or relative to the first of `folders` that holds it."""
+def find_asset(name: str, folders) -> tuple:
+    """(path or None, places tried) of a file a scene names: absolute, or relative to the first folder that has it."""
     path = Path(name)
     if path.is_absolute():
-        if path.is_file():
-            return path
-        raise SignalError(f"no such sound file: {path}")
+        return (path if path.is_file() else None), [path.as_posix()]
     tried = []
     for folder in folders:
         candidate = Path(folder) / path
         if candidate.is_file():
-            return candidate
+            return candidate, tried
         tried.append(candidate.as_posix())
-    raise SignalError(f"no such sound file: `{name}`",
-                      "a recording is named relative to the scene's folder; looked in " + ", ".join(tried))
+    return None, tried
+
+
+def resolve_asset(name: str, folders) -> Path:
+    """A recording the scene names, or a SignalError saying where it was looked for."""
+    found, tried = find_asset(name, folders)
+    if found is None:
+        raise SignalError(f"no such sound file: `{name}`",
+                          "a recording is named relative to the scene's folder; looked in " + ", ".join(tried))
+    return found
 
 
 # ---- the live microphone -----------------------------------------------------------------------------------

@@ -101,19 +101,13 @@ def _read_stl(data: bytes) -> tuple:
 
 
 def resolve(name: str, folders) -> Path:
-    path = Path(name)
-    if path.is_absolute():
-        if path.is_file():
-            return path
-        raise MeshError(f"no such mesh file: {path}")
-    tried = []
-    for folder in folders:
-        candidate = Path(folder) / path
-        if candidate.is_file():
-            return candidate
-        tried.append(candidate.as_posix())
-    raise MeshError(f"no such mesh file: `{name}` (a mesh is named relative to the scene's folder; looked in "
-                    + ", ".join(tried) + ")")
+    from ..signals import find_asset
+
+    found, tried = find_asset(name, folders)
+    if found is None:
+        raise MeshError(f"no such mesh file: `{name}` (a mesh is named relative to the scene's folder; looked in "
+                        + ", ".join(tried) + ")")
+    return found
 
 
 def load_shape(name: str, scale: float, folders) -> MeshShape:

@@ -27,7 +27,7 @@ from isaac_lang.diagnostics import Diagnostic, SceneError, SourcePos
 
 from .. import signals as S
 from . import turbulence
-from .drag import DragBodies, relaxation_factors, shape_aero, stack_bodies
+from .drag import DragBodies, drag_constants, relaxation_factors, shape_aero, stack_bodies
 from .drag import drag as drag_on  # (the name `drag` stays the module's)
 from .fields import WindFields, compile_fields, wind_seed
 
@@ -44,6 +44,11 @@ class WindPlan:
         self.fields = fields
         self.bodies = bodies
         self.air_density = air_density
+        self.constants = drag_constants(bodies, air_density)
+        # the bodies' rows of the state arrays: a slice (views, no copies) when they are consecutive
+        i = bodies.body
+        consecutive = len(i) > 0 and np.array_equal(i, np.arange(i[0], i[0] + len(i)))
+        self.rows = slice(int(i[0]), int(i[0]) + len(i)) if consecutive else i
         self.model = model
         self.step = step  # s: the procedural model's h (set_step keeps it exact)
         self.relative_speed = np.zeros(n)  # (n,) |u - v| at each body, last apply (0 for bodies out of the wind)
@@ -63,9 +68,9 @@ class WindPlan:
         """force_out, torque_out (n,3) += the drag on every body in the wind at time t (force model), or the
         forces on those bodies scaled by the step's relaxation factors (procedural model)."""
         b = self.bodies
-        i = b.body
+        i = self.rows
         u = self.fields.velocity(x[i], t)
-        result = drag_on(b, self.air_density, u, v[i], w[i], R[i])
+        result = drag_on(b, self.air_density, u, v[i], w[i], R[i], self.constants)
         self.last_air_velocity[i] = u
         self.relative_speed[i] = result.speed
         if self.model == "force":
@@ -102,8 +107,7 @@ def wind_speed_at(wind: WindPlan | None, points, t: float, velocity=None, name: 
 
 def wind_intensity(wind: WindPlan, name: str, t: float) -> float:
     """The speed expression s(t) of wind `name` (m/s), before falloff and gusts: "is the wind blowing"."""
-    w = wind.fields.names.index(name)
-    return float(E.evaluate(wind.fields.speed[w], {"t": t}, wind.fields.functions[w]))
+    return wind.fields.speed_at(wind.fields.names.index(name), t)
 
 
 # ---- compiling -------------------------------------------------------------------------------------------------
@@ -197,12 +201,4 @@ def _calls(node: E.Expr):
 
 
 def _scene_error(wind: ir.Wind, message: str, hint: str | None = None) -> SceneError:
-    return SceneError([Diagnostic(message, _pos(wind.source), hint)])
-
-
-def _pos(source: str) -> SourcePos | None:
-    try:
-        file, line, col = source.rsplit(":", 2)
-        return SourcePos(file, int(line), int(col))
-    except ValueError:
-        return None
+    return SceneError([Diagnostic(message, SourcePos.parse(wind.source), hint)])
