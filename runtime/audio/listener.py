@@ -48,6 +48,9 @@ class ListenerStage:
             return (x.mean(axis=0) if x.ndim > 1 else x)[None, :]
         if x.ndim > 1:
             return x
+        if not n or (source[0] == source).all():
+            # a source that stays put over the block (a sound at the listener, a hit's point): one pan
+            source, distance = source[:1], distance[:1]
         offset = source[:, 0] - self.position[0]
         p = np.where(distance > 1e-9, np.clip(offset / np.maximum(distance, 1e-9), -1.0, 1.0), 0.0)
         angle = (p + 1.0) * np.pi / 4.0

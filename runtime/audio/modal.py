@@ -292,6 +292,19 @@ def sphere_modes(radius: float, young: float, poisson: float, density: float,
 
 @functools.lru_cache(maxsize=16)
 def _sphere_roots(nu: float, count: int) -> tuple:
+    """The lowest `count` roots eta of Lamb's equation for Poisson's ratio nu: from the table of
+    sphere_roots.py when nu is one of its ratios (they are this function's own values, kept so that a run
+    need not import scipy.special and scipy.optimize, a third of a second), else solved now."""
+    from .sphere_roots import SPHERE_ROOTS
+
+    if nu in SPHERE_ROOTS:
+        return SPHERE_ROOTS[nu][:count]
+    return solve_sphere_roots(nu)[:count]
+
+
+def solve_sphere_roots(nu: float) -> tuple:
+    """Every root eta of Lamb's equation the search finds: the fundamental and first overtone of the
+    degrees l = 0..9, sorted."""
     from scipy.special import spherical_jn
 
     ratio = math.sqrt((1.0 - 2.0 * nu) / (2.0 * (1.0 - nu)))  # c_T / c_L
@@ -315,7 +328,7 @@ def _sphere_roots(nu: float, count: int) -> tuple:
         found = _sign_changes(lambda x: f(x, l), 0.3, 16.0, 800)
         roots += found[:2]  # the fundamental and first overtone of each degree
     roots.sort()
-    return tuple(roots[:count])
+    return tuple(roots)
 
 
 def _sign_changes(f, lo: float, hi: float, samples: int) -> list:

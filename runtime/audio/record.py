@@ -88,6 +88,9 @@ class Recorder:
         self.record = new_record(plan)
         self.index = {name: i for i, name in enumerate(sim.plan.names)}
         self.air = WindField(plan.scene, sim.plan) if self.record.wind else None
+        # the record's wind series, in the order WindField.speeds gives their values
+        self.wind_probes = WindProbes.of(self.record.wind, self.index) if self.record.wind else None
+        self.wind_series = [self.record.wind[key] for key in self.wind_probes.keys] if self.record.wind else []
         self.frames = np.asarray(sim.plan.frame_times, float)
         self.next_frame = int(np.searchsorted(self.frames, sim.state.t, side="right"))
         self.seen = 0
@@ -112,15 +115,9 @@ class Recorder:
             series.append(state.x[self.index[body]] if body in self.index else 0.0)
         if record.contacts:
             self._contacts(new_events, state)
-        for key, series in record.wind.items():
-            if isinstance(key, tuple):
-                series.append(self.air.listener_speed(key[1], t))
-            elif key in self.index:
-                i = self.index[key]
-                u = self.air.velocity(state.x[i][None, :], t)[0]
-                series.append(float(np.linalg.norm(u - state.v[i])))
-            else:
-                series.append(0.0)
+        if record.wind:
+            for series, value in zip(self.wind_series, self.air.speeds(self.wind_probes, state, t)):
+                series.append(value)
 
     def local_points(self, state, point, bodies) -> dict:
         """A world point in the frame of each of the bodies, from the state at the end of the step."""
@@ -277,6 +274,49 @@ class WindField:
         """The speed of wind `name` at the listener."""
         u = self.fields.velocity(self.listener[None, :], t, self.fields.names.index(name))
         return float(np.linalg.norm(u[0]))
+
+    def speeds(self, probes: "WindProbes", state, t: float) -> np.ndarray:
+        """(len(probes.keys),) the wind speeds the record keeps at time t, in one evaluation of the field for
+        all the points when the scene has one wind (the listener's wind is then the sum at its point):
+        |u(x_i) - v_i| at each body, |u_w(listener)| for each listener wind, 0 for a body not in the run."""
+        out = np.zeros(len(probes.keys))
+        nb = len(probes.body)
+        points = state.x[probes.body]
+        together = len(self.fields.names) == 1 and len(probes.listener_wind)
+        if together:
+            points = np.concatenate([points, self.listener[None, :]])
+        if len(points):
+            u = self.fields.velocity(points, t)
+            # |u - v| at the bodies
+            rel = u[:nb] - state.v[probes.body]
+            out[probes.body_slot] = np.sqrt(np.einsum("ij,ij->i", rel, rel))
+            if together:
+                out[probes.listener_slot] = np.sqrt(u[nb] @ u[nb])
+        if not together:
+            for slot, name in zip(probes.listener_slot, probes.listener_wind):
+                out[slot] = self.listener_speed(name, t)
+        return out
+
+
+@dataclass
+class WindProbes:
+    """Where the record samples the wind (plan, built once): keys in record order; the bodies (indices into
+    the state, with their slots in that order) and the listener's winds (names, with their slots). Keys of
+    bodies that are not in the run keep a 0."""
+
+    keys: list
+    body: np.ndarray  # (b,) int
+    body_slot: np.ndarray  # (b,) int
+    listener_wind: list  # (l,) names
+    listener_slot: list  # (l,) int
+
+    @classmethod
+    def of(cls, wind: dict, index: dict) -> "WindProbes":
+        keys = list(wind)
+        bodies = [(slot, index[key]) for slot, key in enumerate(keys) if not isinstance(key, tuple) and key in index]
+        listeners = [(slot, key[1]) for slot, key in enumerate(keys) if isinstance(key, tuple)]
+        return cls(keys, np.array([i for _, i in bodies], dtype=np.int64), np.array([s for s, _ in bodies], np.int64),
+                   [name for _, name in listeners], [s for s, _ in listeners])
 
 
 def _fields(scene, sim_plan):

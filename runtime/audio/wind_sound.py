@@ -16,6 +16,8 @@ level = (U / 10 m/s)^3 (a dipole's pressure ~ U^3), faded out below 20 Hz and ab
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .iir import PoleFilter
@@ -72,27 +74,41 @@ class Whistle(Node):
 
     def render(self, ctx):
         speed = ctx.wind_speed(self.body)
-        # f = St U / d
-        freq = self.strouhal * speed / self.diameter
         n, fs = ctx.n, ctx.fs
-        steps = 2.0 * np.pi * freq / fs
-        phases = self.phase + np.concatenate(([0.0], np.cumsum(steps[:-1])))
-        self.phase = float((phases[-1] + steps[-1]) % (2.0 * np.pi))
+        # f = St U / d
+        freq = speed * (self.strouhal / self.diameter)
+        # phi = 2 pi integral f dt: the phase at each sample, from the phase carried in
+        phases = _running_sum(freq * (2.0 * np.pi / fs), self.phase)
+        self.phase = float(phases[-1] + freq[-1] * (2.0 * np.pi / fs)) % (2.0 * np.pi)
         # the table's bandwidth is ENVELOPE_CORNER cycles per table sample; read it at the rate that makes it
         # f / 2Q hertz: (f / 2Q) / ENVELOPE_CORNER table samples per second. The envelope (tens of hertz wide)
         # is read every ENVELOPE_STRIDE samples and interpolated between.
-        rate = np.maximum(freq, LOWEST_WHISTLE) / (2.0 * self.q) / ENVELOPE_CORNER / fs
-        where = self.read + np.concatenate(([0.0], np.cumsum(rate[:-1])))
+        rate = np.maximum(freq, LOWEST_WHISTLE) * (1.0 / (2.0 * self.q * ENVELOPE_CORNER * fs))
+        where = _running_sum(rate, self.read)
         self.read = float(where[-1] + rate[-1]) % ENVELOPE_SAMPLES
-        picks = np.append(np.arange(0, n, ENVELOPE_STRIDE), n - 1)
-        envelope = read_periodic(self.envelope, where[picks])
-        k = np.arange(n)
-        re, im = np.interp(k, picks, envelope.real), np.interp(k, picks, envelope.imag)
+        samples, picks = _picks(n)
+        envelope = np.interp(samples, picks, read_periodic(self.envelope, where[picks]))  # complex: re + i im
         # Re(e(t) e^{i phi}) = re cos(phi) - im sin(phi): unit RMS when re and im have it
-        tone = re * np.cos(phases) - im * np.sin(phases)
-        audible = np.clip((freq - LOWEST_WHISTLE) / LOWEST_WHISTLE, 0.0, 1.0) * (freq < 0.4 * fs)
-        level = np.minimum((speed / REFERENCE_SPEED) ** 3, LOUDEST) * audible
+        tone = envelope.real * np.cos(phases) - envelope.imag * np.sin(phases)
+        audible = np.clip((freq - LOWEST_WHISTLE) * (1.0 / LOWEST_WHISTLE), 0.0, 1.0) * (freq < 0.4 * fs)
+        # level = (U / U_ref)^3, at most LOUDEST
+        level = np.minimum(speed * speed * speed * (1.0 / REFERENCE_SPEED**3), LOUDEST) * audible
         return tone * level
+
+
+def _running_sum(steps: np.ndarray, start: float) -> np.ndarray:
+    """start + sum of steps[:k] at each k (the value before each step is taken)."""
+    out = np.empty(len(steps))
+    out[0] = 0.0
+    np.cumsum(steps[:-1], out=out[1:])
+    out += start
+    return out
+
+
+@functools.lru_cache(maxsize=8)
+def _picks(n: int) -> tuple:
+    """(arange(n), the samples where a whistle reads its envelope: every ENVELOPE_STRIDE-th and the last)."""
+    return np.arange(n), np.append(np.arange(0, n, ENVELOPE_STRIDE), n - 1)
 
 
 def narrow_band_table(rng) -> np.ndarray:

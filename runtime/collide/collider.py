@@ -63,7 +63,8 @@ class Collider:
         n = self.plan.n
         self.saved = [np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3))]
         self.t_saved = self.plan.start
-        self.broad = BroadPhase(cplan.table, cplan.collidable, self.plan.dynamic, cplan.excluded, cplan.margin)
+        self.broad = BroadPhase(cplan.table, cplan.collidable, self.plan.dynamic, cplan.excluded, cplan.margin,
+                                still=_never_moving(self.plan))
         self.fcl = None
         if len(cplan.fcl_bodies):
             from .meshes import FclPairs
@@ -71,8 +72,8 @@ class Collider:
             self.fcl = FclPairs(cplan.table, cplan.fcl_bodies)
         self.log = EventLog(self.plan.names, sim.events, self.plan.frame_times)
         self.stages = Stages(n)
-        g = float(np.linalg.norm(self.plan.gravity))
-        self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * g * self.plan.step)
+        self.gravity = float(np.linalg.norm(self.plan.gravity))  # |g|, m/s2
+        self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * self.plan.step)
         self.stats = {"impacts located": 0, "tunnelling caught": 0}
 
     # -- the hooks of the step loop -------------------------------------------------------------------------
@@ -86,7 +87,7 @@ class Collider:
     def after_step(self, h: float, epoch) -> None:
         s = self.sim.state
         t_end = s.t
-        self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * float(np.linalg.norm(self.plan.gravity)) * h)
+        self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * h)
         scan = self.scan()
         for _ in range(MAX_TOI_PER_STEP):
             hit = self._earliest_hit(scan, t_end - self.t_saved)
@@ -105,11 +106,18 @@ class Collider:
     # -- detection ----------------------------------------------------------------------------------------------
 
     def scan(self) -> "Scan":
-        """Contacts at the live state; the broad phase uses boxes swept from the saved start of the step."""
+        """Contacts at the live state; the broad phase uses boxes swept from the saved start of the step.
+        When no dynamic body's swept box comes near anything (most steps), nothing more is computed."""
         s = self.sim.state
+        if not self.broad.anything_near(s.x, self._rotations, self.saved[0]):
+            return Scan(None, NO_PAIRS, None, None)
         R, R0 = quat_to_matrix(s.q), quat_to_matrix(self.saved[1])
         pairs = self.broad.pairs((s.x, R), (self.saved[0], R0))
         return Scan(self.contacts(pairs, s.x, R, self.cp.margin), pairs, R, R0)
+
+    def _rotations(self, index) -> tuple:
+        """(R now, R at the saved start of the step) of bodies `index`, (k,3,3) each."""
+        return quat_to_matrix(self.sim.state.q[index]), quat_to_matrix(self.saved[1][index])
 
     def contacts(self, pairs, x, R, margin):
         parts = []
@@ -318,12 +326,24 @@ class Collider:
 @dataclass
 class Scan:
     """Contacts (or None) and candidate pairs (k,2) at the live state, and the rotation matrices of the live
-    state (R) and of the saved start of the step (R0), (n,3,3)."""
+    state (R) and of the saved start of the step (R0), (n,3,3); R and R0 are None when there are no pairs
+    (nothing reads them then)."""
 
     contacts: Contacts | None
     pairs: np.ndarray
-    R: np.ndarray
-    R0: np.ndarray
+    R: np.ndarray | None
+    R0: np.ndarray | None
+
+
+NO_PAIRS = np.zeros((0, 2), np.int64)
+
+
+def _never_moving(plan) -> np.ndarray:
+    """(n,) bool: static bodies (neither dynamic nor on a kinematic path): their boxes never change."""
+    still = ~np.asarray(plan.dynamic, bool)
+    if plan.kinematics is not None:
+        still[np.asarray(plan.kinematics.index, int)] = False
+    return still
 
 
 def _earlier(best, pair, bracket):

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .shapes import PLANE, bounding_boxes
+from .shapes import PLANE, SPHERE, bounding_boxes, boxes_of
 
 # up to this many boxes every pair is checked directly (k^2 / 2 comparisons beat any bookkeeping)
 ALL_PAIRS_BELOW = 32
@@ -84,15 +84,87 @@ def is_excluded(keys: np.ndarray, excluded: np.ndarray) -> np.ndarray:
 
 # ---- broad phase (every step) --------------------------------------------------------------------------------
 
-class BroadPhase:
-    """Candidate pairs of a fixed set of bodies; `pairs` returns (k,2) body indices, a before b."""
+# the early-out's boxes are grown by this fraction (plus as many metres) so that rounding never makes them
+# smaller than the full broad phase's
+_SAFE = 1e-9
 
-    def __init__(self, table, collidable: np.ndarray, dynamic: np.ndarray, excluded: np.ndarray, margin: float):
+
+def _reach(table, index: np.ndarray) -> np.ndarray:
+    """(k,) a half-edge r such that the cube x +- r holds the body's box at any orientation: the radius of a
+    sphere about the centre of mass holding the shape (a sphere's radius; else |centre| + |half|), grown by
+    _SAFE."""
+    radius = np.where(table.kind[index] == SPHERE, table.radius[index],
+                      np.linalg.norm(table.centre[index], axis=1) + np.linalg.norm(table.half[index], axis=1))
+    return radius * (1.0 + _SAFE) + _SAFE
+
+
+class BroadPhase:
+    """Candidate pairs of a fixed set of bodies; `pairs` returns (k,2) body indices, a before b.
+
+    still (n,) bool, optional: bodies that never move (static, not kinematic). With it, `anything_near` can
+    tell cheaply that no pair can touch (most steps of most scenes), before the full broad phase: it bounds
+    each dynamic body by a cube about its centre (no rotation needed) and keeps the boxes of the still bodies."""
+
+    def __init__(self, table, collidable: np.ndarray, dynamic: np.ndarray, excluded: np.ndarray, margin: float,
+                 still: np.ndarray | None = None):
         self.table, self.dynamic, self.excluded, self.margin = table, dynamic, excluded, margin
         self.n = len(dynamic)
         kinds = table.kind[collidable]
         self.boxed = collidable[kinds != PLANE]  # bodies with a finite box
         self.planes = collidable[kinds == PLANE]
+        self.quick = still is not None
+        if self.quick:
+            # the early-out's split of the boxed bodies: dynamic ones (every pair has one), ones that never
+            # move (boxes kept), the rest (kinematic: boxes every time)
+            self.active = self.boxed[dynamic[self.boxed]]
+            self.still = self.boxed[~dynamic[self.boxed] & still[self.boxed]]
+            self.driven = self.boxed[~dynamic[self.boxed] & ~still[self.boxed]]
+            self.reach = _reach(table, self.active) + margin  # (a,) half-edge of a cube about x that holds the box
+            self.still_boxes = None  # (lo, hi) of `still`, from the first poses seen, grown by _SAFE
+
+    def anything_near(self, x, R_of, x_before) -> bool:
+        """False when `pairs` would find nothing: no cube bounding a dynamic body's box, swept from x_before
+        to x, overlaps the box of another body or reaches a plane. The cubes hold the boxes, so this never
+        says False where `pairs` would find a pair. R_of(index) -> (R now, R before) of those bodies (k,3,3)
+        each, asked only for kinematic bodies and planes. Without `still`, always True."""
+        if not self.quick:
+            return True
+        if not len(self.active):
+            return False
+        xa, xb = x[self.active], x_before[self.active]
+        lo = np.minimum(xa, xb) - self.reach[:, None]
+        hi = np.maximum(xa, xb) + self.reach[:, None]
+        others_lo, others_hi = [lo], [hi]
+        if len(self.still):
+            if self.still_boxes is None:
+                lo_s, hi_s = boxes_of(self.table, self.still, x[self.still], R_of(self.still)[0], self.margin)
+                self.still_boxes = (lo_s - _SAFE * (1.0 + np.abs(lo_s)), hi_s + _SAFE * (1.0 + np.abs(hi_s)))
+            others_lo.append(self.still_boxes[0])
+            others_hi.append(self.still_boxes[1])
+        if len(self.driven):
+            R_now, R_before = R_of(self.driven)
+            lo_d, hi_d = boxes_of(self.table, self.driven, x[self.driven], R_now, self.margin)
+            lo_b, hi_b = boxes_of(self.table, self.driven, x_before[self.driven], R_before, self.margin)
+            others_lo.append(np.minimum(lo_d, lo_b) - _SAFE * (1.0 + np.abs(lo_d)))
+            others_hi.append(np.maximum(hi_d, hi_b) + _SAFE * (1.0 + np.abs(hi_d)))
+        other_lo = np.concatenate(others_lo) if len(others_lo) > 1 else lo
+        other_hi = np.concatenate(others_hi) if len(others_hi) > 1 else hi
+        # box a overlaps box b: lo_a <= hi_b and lo_b <= hi_a on every axis (a body with itself does not count)
+        hit = np.all((lo[:, None] <= other_hi[None]) & (other_lo[None] <= hi[:, None]), axis=2)
+        np.fill_diagonal(hit, False)  # (the dynamic bodies come first among the others)
+        if hit.any():
+            return True
+        return bool(len(self.planes)) and self._near_a_plane(lo, hi, x, R_of(self.planes)[0])
+
+    def _near_a_plane(self, lo, hi, x, R_planes) -> bool:
+        centre, extent = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        for plane, R in zip(self.planes, R_planes):
+            n = R @ self.table.normal[plane]
+            # lowest point of a box along n: n . (c - p0) - sum |n_i| e_i (with room for rounding)
+            low = (centre - x[plane]) @ n - extent @ np.abs(n)
+            if np.any(low <= self.margin + _SAFE * (1.0 + np.abs(centre).max())):
+                return True
+        return False
 
     def pairs(self, poses_now, poses_before=None) -> np.ndarray:
         """Pairs whose boxes overlap at poses_now = (x, R), or, with poses_before, anywhere on the way (each

@@ -80,9 +80,13 @@ def bounding_boxes(table: ShapeTable, index: np.ndarray, x: np.ndarray, R: np.nd
     """World axis-aligned boxes (lo, hi), each (k,3), of the bodies `index` (not planes) at poses x (n,3),
     R (n,3,3), grown by margin. A box of half-extents h turned by R has world half-extents |R| h; a cylinder
     along axis a is tighter: |a_i| L/2 + r sqrt(1 - a_i^2)."""
+    return boxes_of(table, index, x[index], R[index], margin)
+
+
+def boxes_of(table: ShapeTable, index: np.ndarray, xi: np.ndarray, Ri: np.ndarray, margin: float):
+    """`bounding_boxes` from the poses of those bodies alone: xi (k,3), Ri (k,3,3)."""
     kind = table.kind[index]
-    Ri = R[index]
-    centre = x[index] + np.einsum("kij,kj->ki", Ri, table.centre[index])
+    centre = xi + np.einsum("kij,kj->ki", Ri, table.centre[index])
     extent = np.einsum("kij,kj->ki", np.abs(Ri), table.half[index])
     sphere = kind == SPHERE
     extent[sphere] = table.radius[index][sphere, None]

@@ -1,6 +1,7 @@
 """Wind stage: air velocity fields and the aerodynamic drag they put on bodies (PHYSICS.md section 7).
 
     fields.py      u(x, t): uniform and source winds, falloff, cone, their sum
+    speed.py       a wind's speed expression s(t), compiled once into closures (no tree walk per call)
     turbulence.py  seeded fractal noise: gusts in time and space, the noise() and gust() signals
     drag.py        F = 1/2 rho Cd A |u - v| (u - v) at the centre of pressure, A from shape and orientation
     ../signals.py  envelope(...) of a recording and mic(): intensities from sound
@@ -45,7 +46,8 @@ class WindPlan:
         self.bodies = bodies
         self.air_density = air_density
         self.constants = drag_constants(bodies, air_density)
-        # the bodies' rows of the state arrays: a slice (views, no copies) when they are consecutive
+        # where the results go in the force stage's arrays: a slice (in place, no gather) when the bodies are
+        # consecutive; the inputs are still gathered by index (contiguous copies: the kernels see what they did)
         i = bodies.body
         consecutive = len(i) > 0 and np.array_equal(i, np.arange(i[0], i[0] + len(i)))
         self.rows = slice(int(i[0]), int(i[0]) + len(i)) if consecutive else i
@@ -68,19 +70,21 @@ class WindPlan:
         """force_out, torque_out (n,3) += the drag on every body in the wind at time t (force model), or the
         forces on those bodies scaled by the step's relaxation factors (procedural model)."""
         b = self.bodies
-        i = self.rows
+        i = b.body
+        Ri, wi = R[i], w[i]
         u = self.fields.velocity(x[i], t)
-        result = drag_on(b, self.air_density, u, v[i], w[i], R[i], self.constants)
-        self.last_air_velocity[i] = u
-        self.relative_speed[i] = result.speed
+        result = drag_on(b, self.air_density, u, v[i], wi, Ri, self.constants)
+        out = self.rows
+        self.last_air_velocity[out] = u
+        self.relative_speed[out] = result.speed
         if self.model == "force":
-            force_out[i] += result.force
-            torque_out[i] += result.torque
+            force_out[out] += result.force
+            torque_out[out] += result.torque
             return
-        w_body = np.einsum("kji,kj->ki", R[i], w[i])
+        w_body = np.einsum("kji,kj->ki", Ri, wi)
         phi, phi_w = relaxation_factors(b, self.air_density, result, w_body, self.step)
-        force_out[i] = phi[:, None] * (force_out[i] + result.force)
-        torque_out[i] = phi_w[:, None] * (torque_out[i] + result.torque)
+        force_out[out] = phi[:, None] * (force_out[out] + result.force)
+        torque_out[out] = phi_w[:, None] * (torque_out[out] + result.torque)
 
     def describe(self) -> str:
         kinds = ", ".join(f"{name} ({'source' if s else 'uniform'})" for name, s in zip(self.fields.names,

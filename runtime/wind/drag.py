@@ -122,6 +122,16 @@ class DragBodies:
     spin: np.ndarray  # (k,3) K
     size: np.ndarray  # (k,)
 
+    @property
+    def shaped(self) -> bool:
+        """Whether A(n) depends on n for any of the bodies (else A = area0: a sphere, or a body's `area`)."""
+        return bool(np.any(self.face) or np.any(self.side))
+
+    @property
+    def turning(self) -> bool:
+        """Whether the wind can turn any of the bodies (else the torque is 0: r_cp = 0, D = 0, K = 0)."""
+        return bool(np.any(self.half) or np.any(self.sweep) or np.any(self.spin))
+
 
 def stack_bodies(indices, aeros, cds, mass, inertia_body) -> DragBodies:
     idx = np.asarray(indices, dtype=int)
@@ -134,17 +144,35 @@ def stack_bodies(indices, aeros, cds, mass, inertia_body) -> DragBodies:
         spin=np.array([a.spin for a in aeros], float).reshape(-1, 3), size=np.array([a.size for a in aeros], float))
 
 
+@dataclass
+class DragConstants:
+    """What `drag` computes from the bodies and the air alone, computed once (plan): the same products, in the
+    same order, as the formulas below write them, so the forces are the same to the last bit."""
+
+    half_rho_cd: np.ndarray  # (k,) 1/2 rho Cd
+    rho_cd: np.ndarray  # (k,) rho Cd
+    spin_drag: np.ndarray  # (k,3) 1/2 rho Cd K
+    arm: np.ndarray  # (k,3) -CP_SHIFT H: r_cp = arm * n
+    shaped: bool  # A(n) varies (else A = area0)
+    turning: bool  # there is a torque (else it is 0)
+
+
+def drag_constants(b: DragBodies, rho: float) -> DragConstants:
+    return DragConstants(0.5 * rho * b.cd, rho * b.cd, 0.5 * rho * b.cd[:, None] * b.spin, -CP_SHIFT * b.half,
+                         b.shaped, b.turning)
+
+
 def _norm(a: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ki,ki->k", a, a))
 
 
+_NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
+
+
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise a x b for (k,3) arrays (np.cross is several times slower on small arrays)."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
+    """Row-wise a x b for (k,3) arrays (np.cross is several times slower on small arrays):
+    (a x b)_i = a_{i+1} b_{i+2} - a_{i+2} b_{i+1}, all three components at once."""
+    return a.take(_NEXT, axis=1) * b.take(_PREV, axis=1) - a.take(_PREV, axis=1) * b.take(_NEXT, axis=1)
 
 
 def projected_area(b: DragBodies, n_body: np.ndarray) -> np.ndarray:
@@ -163,19 +191,27 @@ class DragResult:
     damping: np.ndarray  # (k,3) D_j, N m s: the wind's damping of turns about each body axis
 
 
-def drag(b: DragBodies, rho: float, u: np.ndarray, v: np.ndarray, w: np.ndarray, R: np.ndarray) -> DragResult:
-    """Drag on the k bodies: u (k,3) the air velocity at each; v, w (k,3) and R (k,3,3) the bodies' own."""
+def drag(b: DragBodies, rho: float, u: np.ndarray, v: np.ndarray, w: np.ndarray, R: np.ndarray,
+         constants: DragConstants | None = None) -> DragResult:
+    """Drag on the k bodies: u (k,3) the air velocity at each; v, w (k,3) and R (k,3,3) the bodies' own.
+    constants: drag_constants(b, rho), when the caller keeps them."""
+    c = constants if constants is not None else drag_constants(b, rho)
     rel = u - v
     speed = _norm(rel)
+    if not (c.shaped or c.turning):
+        # A = area0 (area0 + face . |n| + side sqrt(1 - n_z^2) with face = side = 0), and no torque
+        force = (c.half_rho_cd * b.area0 * speed)[:, None] * rel
+        zero = np.zeros_like(force)
+        return DragResult(force, zero, speed, b.area0.copy(), zero)
     n_body = np.einsum("kji,kj->ki", R, rel) / np.maximum(speed, TINY_SPEED)[:, None]
     area = projected_area(b, n_body)
     # F = 1/2 rho Cd A |u_rel| u_rel, at r_cp = -CP_SHIFT H n
-    force = (0.5 * rho * b.cd * area * speed)[:, None] * rel
-    arm = np.einsum("kij,kj->ki", R, -CP_SHIFT * b.half * n_body)
+    force = (c.half_rho_cd * area * speed)[:, None] * rel
+    arm = np.einsum("kij,kj->ki", R, c.arm * n_body)
     # D_j = rho Cd |u_rel| sum_k |n_k| J_kj;  tau_b = -D w_b - 1/2 rho Cd K |w_b| w_b
-    damping = (rho * b.cd * speed)[:, None] * np.einsum("kf,kfj->kj", np.abs(n_body), b.sweep)
+    damping = (c.rho_cd * speed)[:, None] * np.einsum("kf,kfj->kj", np.abs(n_body), b.sweep)
     w_body = np.einsum("kji,kj->ki", R, w)
-    turning = -damping * w_body - 0.5 * rho * b.cd[:, None] * b.spin * np.abs(w_body) * w_body
+    turning = -damping * w_body - c.spin_drag * np.abs(w_body) * w_body
     torque = cross(arm, force) + np.einsum("kij,kj->ki", R, turning)
     return DragResult(force, torque, speed, area, damping)
 

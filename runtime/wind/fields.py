@@ -13,13 +13,13 @@ still. s(t) is the wind's `speed` expression, which may call envelope(...), mic(
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from isaac_lang import expr as E
 from isaac_lang import ir
 
+from .speed import SpeedOfTime
 from .turbulence import GustField
 
 # the falloff is held constant inside this fraction of the reference distance (no infinite speed at the source)
@@ -44,32 +44,42 @@ class WindFields:
     speed: list  # (m,) expressions of t, m/s
     functions: list  # (m,) signal functions for E.evaluate
     gusts: list  # (m,) GustField or None
+    speed_of_time: list = field(init=False)  # (m,) SpeedOfTime: `speed` compiled once
+
+    def __post_init__(self):
+        self.speed_of_time = [SpeedOfTime(s, f) for s, f in zip(self.speed, self.functions)]
 
     def speeds(self, t: float) -> np.ndarray:
         """(m,) s(t) of every wind."""
-        env = {"t": t}
-        return np.array([float(E.evaluate(s, env, f)) for s, f in zip(self.speed, self.functions)])
+        return np.array([s(t) for s in self.speed_of_time])
+
+    def speed_at(self, w: int, t: float) -> float:
+        """s(t) of wind w (m/s), from its compiled expression."""
+        return self.speed_of_time[w](t)
 
     def velocity(self, x: np.ndarray, t: float, only: int | None = None) -> np.ndarray:
         """(k,3) air velocity at points x (k,3): the sum of the winds (or wind `only`)."""
         x = np.asarray(x, dtype=float).reshape(-1, 3)
-        total = np.zeros_like(x)
-        chosen = range(len(self.names)) if only is None else (only,)
-        for w in chosen:
-            s = float(E.evaluate(self.speed[w], {"t": t}, self.functions[w]))
+        total = None
+        for w in (range(len(self.names)) if only is None else (only,)):
+            s = self.speed_of_time[w](t)
             if s == 0.0:
                 continue
             u = self._mean(w, x, s)
             if self.gusts[w] is not None:
                 # u' = I |u| G(x, t)
                 u += self.turbulence[w] * np.sqrt(np.einsum("ij,ij->i", u, u))[:, None] * self.gusts[w](x, t)
-            total += u
-        return total
+            # (the first wind is the total itself: 0 + u is u)
+            total = u if total is None else total + u
+        return np.zeros_like(x) if total is None else total
 
     def _mean(self, w: int, x: np.ndarray, s: float) -> np.ndarray:
         d = self.direction[w]
         if not self.is_source[w]:
-            return np.broadcast_to(s * d, x.shape).copy()
+            # u = s d at every point
+            u = np.empty(x.shape)
+            u[:] = s * d
+            return u
         r = x - self.origin[w]
         dist = np.sqrt(np.einsum("ij,ij->i", r, r))
         e = r / np.maximum(dist, 1e-300)[:, None]

@@ -44,7 +44,11 @@ def lattice(index: np.ndarray, salt) -> np.ndarray:
     with np.errstate(over="ignore"):
         z = index.astype(np.int64).view(np.uint64) + np.asarray(salt, dtype=np.uint64) * _GOLDEN
         z = _splitmix(z)
-    # the top 53 bits as a float in [0, 1), then to [-1, 1)
+    return _unit(z)
+
+
+def _unit(z: np.ndarray) -> np.ndarray:
+    """Hashes (uint64) to values in [-1, 1): the top 53 bits as a float in [0, 1), then to [-1, 1)."""
     return (z >> np.uint64(11)).astype(np.float64) * (2.0 / 2.0**53) - 1.0
 
 
@@ -75,7 +79,14 @@ def fbm(s, salt: int, octaves: int = OCTAVES, gain: float = GAIN) -> np.ndarray:
 
 
 class GustField:
-    """G(x, t): three independent unit-RMS fractal noises in time and space for one wind."""
+    """G(x, t): three independent unit-RMS fractal noises in time and space for one wind.
+
+    Called at every force evaluation with a few points, so the lattice values are cached: a lattice cell is
+    0.4 s / 2^o wide in time and the steps are a few ms, so the points mostly stay in the cells of the last
+    call; the hash runs again only when one of them leaves its cell (the values are the same either way)."""
+
+    # lattice caches kept at once, one per shape of the points asked for (force stage, recorder, ...)
+    CACHED_SHAPES = 8
 
     def __init__(self, seed: int, time_scale: float, octaves: int = OCTAVES):
         rng = np.random.default_rng(np.random.SeedSequence([seed & 0xFFFFFFFF, 0x9057]))
@@ -89,13 +100,39 @@ class GustField:
         self.offset = (0.37 * np.arange(octaves))[None, :, None]
         salts = (np.uint64(seed & 0xFFFFFFFF) * np.uint64(7919) + np.arange(3 * octaves, dtype=np.uint64))
         self.salt = salts.reshape(3, octaves, 1)
+        with np.errstate(over="ignore"):
+            self.salt_mix = self.salt * _GOLDEN  # (3, O, 1) the salt's part of the lattice hash, modulo 2^64
+        self._cells: dict = {}  # shape -> (floor(s), a, b): the lattice cells of the last call of that shape
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         """(k,3) gust vectors at points x (k,3) and time t."""
         # s[c, o, i] = 2^o (t / T + x_i . k_co / L) + offset_o
         phase = t / self.time_scale + np.einsum("coj,ij->coi", self.k, x) / self.length
-        noise = value_noise(self.frequency * phase + self.offset, self.salt)
-        return np.sum(self.amplitude * noise, axis=1).T
+        s = self.frequency * phase + self.offset
+        # value noise n(s) = a + (b - a) S(f), a and b the lattice values at floor(s) and floor(s) + 1
+        cell = np.floor(s)
+        a, b = self._lattice_pair(cell)
+        f = s - cell
+        fade = f * f * f * (f * (6.0 * f - 15.0) + 10.0)
+        noise = a + (b - a) * fade
+        return np.add.reduce(self.amplitude * noise, axis=1).T  # sum over the octaves
+
+    def _lattice_pair(self, cell: np.ndarray) -> tuple:
+        """Lattice values (a, b) at the integer points floor(s) (cell, (3, O, k) floats) and one above, with
+        this field's salts: lattice([i0, i0 + 1], salt), from the cache when no point changed cell."""
+        cached = self._cells.get(cell.shape)
+        if cached is not None and (cached[0] == cell).all():
+            return cached[1], cached[2]
+        z = np.empty((2,) + cell.shape, np.uint64)
+        with np.errstate(over="ignore"):
+            # z = i0 + salt * GOLDEN and z + 1 = (i0 + 1) + salt * GOLDEN, modulo 2^64 (as lattice() hashes)
+            np.add(cell.astype(np.int64).view(np.uint64), self.salt_mix, out=z[0])
+            np.add(z[0], np.uint64(1), out=z[1])
+            values = _unit(_splitmix(z))
+        if len(self._cells) >= self.CACHED_SHAPES:
+            self._cells.clear()
+        self._cells[cell.shape] = (cell, values[0], values[1])
+        return values[0], values[1]
 
 
 def gust_reference(field: GustField, point, t: float) -> np.ndarray:

@@ -225,3 +225,12 @@ def test_half_sine_pulse():
     assert x[0] > 0.01 * x.max()  # sampled at mid-points: sound from the first sample
     assert half_sine(1e-3, FS, area=False).max() == pytest.approx(1.0, abs=1e-3)
     assert list(half_sine(1e-9, FS)) == [1.0]
+
+
+@pytest.mark.parametrize("nu", [0.0, 0.22, 0.3, 0.33, 0.49])
+def test_sphere_root_table_is_the_solver(nu):
+    from isaac_runtime.audio.sphere_roots import SPHERE_ROOTS
+
+    assert SPHERE_ROOTS[nu] == M.solve_sphere_roots(nu)
+    assert M._sphere_roots(nu, 5) == M.solve_sphere_roots(nu)[:5]
+    assert M._sphere_roots(0.2537, 5) == M.solve_sphere_roots(0.2537)[:5]  # not in the table: solved

@@ -151,3 +151,43 @@ def test_a_wind_that_moves_no_body_is_still_heard():
     assert result.audio.record.wind[("listener", "gale")].view() == pytest.approx(8.0)
     x = result.audio.render()[:, 0]
     assert np.sqrt(np.mean(x[FS // 10:] ** 2)) > 0.05
+
+
+@pytest.mark.parametrize("winds", [
+    "wind gale { direction (1, 0, 0.3)  speed 6 m/s + 1 m/s * sin(t / 1 s)  turbulence 0.5  gust 0.3 s }",
+    "wind gale { direction (1, 0, 0)  speed 6 m/s  turbulence 0.5 }  "
+    "wind puff { from (0, 1, 0)  toward (0, 0, 1)  speed 3 m/s  spread 60 deg  turbulence 0.2 }",
+])
+def test_recorded_wind_speeds_are_the_fields_at_each_probe(winds):
+    """The recorder samples every wind series of a step in one evaluation of the field (one wind) or per
+    listener wind (several): the same speeds as asking the field point by point."""
+    from types import SimpleNamespace
+
+    from isaac_runtime.audio.record import WindField, WindProbes
+    from isaac_runtime.run import RunOptions, simulate
+
+    scene = load_text(f"""scene breeze {{
+      time 0 s .. 0.2 s
+      audio {{ rate 22050 Hz }}
+      listener {{ at (0.3, 1, 2) }}
+      body pole static cylinder {{ radius 2 mm  length 1 m  at (0.5, 1, 0) }}
+      body bob sphere {{ radius 5 cm  mass 10 g  wind on }}
+      {winds}
+      sound air on wind(gale) {{ play wind_noise() + whistle(pole) + whistle(bob) }}
+    }}""", name="breeze.isaac").scene
+    result = simulate(scene, RunOptions())
+    field = WindField(scene, result.simulation.plan)
+    index = {name: i for i, name in enumerate(result.simulation.plan.names)}
+    probes = WindProbes.of(result.audio.record.wind, index)
+    assert set(probes.keys) == {"pole", "bob", ("listener", "gale")}
+    rng = np.random.default_rng(4)
+    for t in (0.0, 0.37, 1.5):
+        state = SimpleNamespace(x=rng.normal(size=(2, 3)), v=rng.normal(size=(2, 3)))
+        speeds = field.speeds(probes, state, t)
+        for key, value in zip(probes.keys, speeds):
+            if isinstance(key, tuple):
+                expected = field.listener_speed(key[1], t)
+            else:
+                i = index[key]
+                expected = np.linalg.norm(field.velocity(state.x[i][None, :], t)[0] - state.v[i])
+            assert value == pytest.approx(expected, rel=1e-14, abs=1e-14), key

@@ -162,6 +162,37 @@ def test_broad_phase_finds_exactly_the_overlapping_boxes(n, spread):
     assert found == expected and len(found) > n // 4
 
 
+@pytest.mark.parametrize("planes", [0, 1])
+def test_broad_phase_early_out_never_hides_a_pair(planes):
+    """anything_near (cubes about the dynamic bodies, kept boxes of the still ones) says False only when the
+    full broad phase finds no pair, over random scenes of dynamic, still and kinematic bodies moving a
+    random step; and it does say False for most sparse scenes."""
+    rng = np.random.default_rng(11)
+    quiet = 0
+    for trial in range(300):
+        n = 8
+        kinds = rng.choice([SPHERE, BOX, CAPSULE, CYLINDER], n)
+        kinds[:planes] = PLANE
+        table = random_table(kinds, rng)
+        table.centre[kinds == BOX] = rng.normal(size=(int(np.sum(kinds == BOX)), 3)) * 0.05  # off-centre boxes
+        dynamic = rng.random(n) < 0.4
+        dynamic[:planes] = False
+        still = ~dynamic & (rng.random(n) < 0.7)
+        still[:planes] = True
+        spread = rng.choice([0.8, 2.0, 4.0])
+        x0, R0 = random_poses(n, rng, spread)
+        x1, R1 = x0 + rng.normal(size=(n, 3)) * 0.1 * ~still[:, None], R0.copy()
+        R1[~still] = random_poses(n, rng, 1.0)[1][~still]
+        x0[:planes], x1[:planes] = (0.0, -spread, 0.0), (0.0, -spread, 0.0)
+        R0[:planes] = R1[:planes] = np.eye(3)
+        broad = BroadPhase(table, np.arange(n), dynamic, np.zeros(0, np.int64), 1e-4, still=still)
+        near = broad.anything_near(x1, lambda index: (R1[index], R0[index]), x0)
+        found = broad.pairs((x1, R1), (x0, R0))
+        assert near or not len(found), (trial, found)
+        quiet += not near
+    assert quiet > 30
+
+
 # ---- narrow phase --------------------------------------------------------------------------------------------
 
 def contact(kind_a, kind_b, table, x, R, margin=np.inf):

@@ -170,6 +170,34 @@ def test_drag_kernel_matches_its_reference():
         assert np.allclose(result.torque[i], torque, rtol=1e-12, atol=1e-15)
 
 
+def test_drag_of_bodies_the_wind_cannot_turn_is_the_general_kernel_to_the_bit():
+    """A sphere, or any body given an `area` and no lever arm: the kernel skips n, A(n) and the torque; the
+    force is the general formula's to the last bit, the torque 0."""
+    from isaac_lang.ir import Shape
+
+    rng = np.random.default_rng(7)
+    aeros = [D.shape_aero(Shape(type="sphere", radius=r), 0.05, None, area=a) for r, a in ((0.02, None), (0.03, 0.012))]
+    bodies = D.stack_bodies([0, 1], aeros, [0.47, 1.2], [0.05, 0.05], np.tile(np.eye(3) * 1e-5, (2, 1, 1)))
+    constants = D.drag_constants(bodies, 1.2)
+    assert not (constants.shaped or constants.turning)
+    general = dataclasses.replace(constants, shaped=True, turning=True)
+    for _ in range(200):
+        u, v, w = rng.normal(size=(3, 2, 3)) * np.array([5.0, 1.0, 3.0])[:, None, None]
+        R = quat_to_matrix(quat_from_axis_angle(rng.normal(size=(2, 3)), rng.uniform(0, 3, 2)))
+        fast, full = D.drag(bodies, 1.2, u, v, w, R, constants), D.drag(bodies, 1.2, u, v, w, R, general)
+        assert np.array_equal(fast.force, full.force) and np.array_equal(fast.area, full.area)
+        assert np.array_equal(fast.torque, full.torque) and not fast.torque.any()
+        assert np.array_equal(fast.damping, full.damping)
+
+
+def test_row_cross_product():
+    a, b = np.random.default_rng(2).normal(size=(2, 50, 3))
+    # (a x b)_i = a_{i+1} b_{i+2} - a_{i+2} b_{i+1}, component by component
+    expected = np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                         a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+    assert np.array_equal(D.cross(a, b), expected)
+
+
 def test_user_area_replaces_the_shape_area():
     from isaac_lang.ir import Shape
 
@@ -228,6 +256,40 @@ def test_speed_follows_time_and_the_signals():
     assert speeds == [wind_intensity(again.forces.wind, "a", t) for t in np.linspace(0, 5, 11)]
 
 
+SPEEDS = [
+    "5 m/s + 2 m/s * sin(2 * pi * t / 7 s)",
+    "2 m/s * (1 + sin(t / 1 s)) * gust(1 s)",
+    "3 m/s * noise(0.5 s, seed = 2) - 1 m/s",
+    "max(0 m/s, 4 m/s - t * 1 m/s2) / 2 + abs(cos(t / 1 s)) * 1 m/s",
+    "1 m/s * (t / 1 s) ^ 2 - -(smoothstep(0, 1, t / 1 s)) * 1 m/s",
+    "clamp(t / 1 s, 0.2, 0.8) * 1 m/s + lerp(1, 3, 0.25) * 1 m/s + step(1, t / 1 s) * 1 m/s",
+]
+
+
+@pytest.mark.parametrize("speed", SPEEDS)
+def test_compiled_speed_is_the_evaluator_to_the_bit(speed):
+    from isaac_lang import expr as E
+
+    from isaac_runtime.wind.speed import SpeedOfTime, compile_scalar
+
+    fields = wind_plan("", f"wind a {{ direction (1, 0, 0)  speed {speed} }}").forces.wind.fields
+    node, functions = fields.speed[0], fields.functions[0]
+    compiled, memo = compile_scalar(node, functions), SpeedOfTime(node, functions)
+    for t in np.linspace(-1.0, 6.0, 57):
+        expected = float(E.evaluate(node, {"t": float(t)}, functions))
+        assert float(compiled(float(t))) == expected and memo(float(t)) == expected == memo(float(t))
+        assert fields.speed_at(0, float(t)) == expected
+
+
+def test_keyframed_speed_falls_back_to_the_evaluator():
+    from isaac_lang import expr as E
+
+    from isaac_runtime.wind.speed import compile_scalar
+
+    node = E.Op("mul", (E.Keys("linear", (0.0, 1.0, 2.0), (1.0, 3.0, 2.0)), E.Const(2.0)))
+    assert [compile_scalar(node)(t) for t in (0.0, 0.5, 1.5, 3.0)] == [2.0, 4.0, 5.0, 4.0]
+
+
 # ---- turbulence -----------------------------------------------------------------------------------------------
 
 def test_fractal_noise_is_seeded_and_unit_rms():
@@ -252,6 +314,21 @@ def test_gusts_in_space_and_time():
     near = np.array([field(np.array([[0.05, 0.0, 0.0]]), t)[0, 0] for t in times])
     far = np.array([field(np.array([[30.0, 0.0, 0.0]]), t)[0, 0] for t in times])
     assert np.corrcoef(here, near)[0, 1] > 0.9 and abs(np.corrcoef(here, far)[0, 1]) < 0.2
+
+
+def test_cached_lattice_gives_the_hashed_noise_to_the_bit():
+    """GustField caches the lattice values of the cells its points were in; along a run (points drifting,
+    time stepping, callers of two sizes taking turns) it must give value_noise's values exactly."""
+    field = T.GustField(seed=9, time_scale=0.4)
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(1, 3)) * 0.3
+    probes = rng.normal(size=(6, 3))
+    for t in np.arange(0.0, 6.0, 0.0025):
+        x = x + rng.normal(size=(1, 3)) * 2e-3
+        for points in (x, probes):
+            phase = t / field.time_scale + np.einsum("coj,ij->coi", field.k, points) / field.length
+            noise = T.value_noise(field.frequency * phase + field.offset, field.salt)
+            assert np.array_equal(field(points, t), np.sum(field.amplitude * noise, axis=1).T)
 
 
 def test_turbulence_is_reproducible_and_scales_with_the_wind():
