@@ -6,6 +6,7 @@
     isaac run SCENE [--out DIR] [--solver ...] [--step S] [--until S] [--set ...] [--plots] [--no-viewer]
     isaac watch SCENE [--out DIR] [--port N] [--no-serve] [--poll] [--plots] [run options]   live reload
     isaac export SCENE --format rib|gltf|glb [--out DIR] [--trajectory NPZ] [--frames A:B:S] ...
+    isaac bench [--quick] [--only NAME] [--out DIR]   the benchmark suite (benchmarks/, a source checkout)
 """
 from __future__ import annotations
 
@@ -67,7 +68,19 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--motion-blur", action="store_true", help="RIB: blur over half a frame")
     export.add_argument("--size", default="960x540", metavar="WxH", help="RIB: image size in pixels")
     export.add_argument("--camera", default=None, help="RIB: the camera to render (default the scene's first)")
+    bench = commands.add_parser("bench", help="run the benchmark suite: CSVs and plots in benchmarks/results/")
+    bench.add_argument("--quick", action="store_true",
+                       help="a few minutes: fewer steps, sizes and repeats, into benchmarks/results/quick/")
+    bench.add_argument("--only", action="append", metavar="NAME", choices=BENCH_SECTIONS,
+                       help=f"one section (repeatable): {', '.join(BENCH_SECTIONS)}")
+    bench.add_argument("--out", default=None, help="output folder (default benchmarks/results[/quick])")
+    bench.add_argument("--docs", action=argparse.BooleanOptionalAction, default=None,
+                       help="rewrite the tables of docs/performance.md (default: full runs into benchmarks/results)")
     return parser
+
+
+# benchmarks/suite.py SECTIONS, repeated here so that building the parser imports nothing
+BENCH_SECTIONS = ("work_precision", "scaling", "stress", "specialization", "audio", "profile")
 
 
 def run_options(sub: argparse.ArgumentParser) -> None:
@@ -282,8 +295,21 @@ def _frames(spec: str | None) -> slice:
     raise SceneError([_usage_diagnostic(f"--frames wants A, A:B or A:B:STEP (frame numbers), got `{spec}`")])
 
 
+def cmd_bench(args, sources) -> int:
+    """The suite lives in the source tree's benchmarks/ (not installed): found beside this package."""
+    root = Path(__file__).resolve().parents[1]
+    if not (root / "benchmarks" / "suite.py").is_file():
+        print("isaac bench: needs a source checkout (benchmarks/ beside isaac_lang/); "
+              "install with `pip install -e '.[bench]'`", file=sys.stderr)
+        return EXIT_BUG
+    sys.path.insert(0, str(root))
+    from benchmarks.suite import run
+
+    return run(quick=args.quick, only=args.only, out=args.out, docs=args.docs)
+
+
 COMMANDS = {"parse": cmd_parse, "check": cmd_check, "plan": cmd_plan, "run": cmd_run, "watch": cmd_watch,
-            "export": cmd_export}
+            "export": cmd_export, "bench": cmd_bench}
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

@@ -15,7 +15,7 @@ from lark.exceptions import UnexpectedInput
 from . import expr as E
 from . import units as U
 from .diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean, display_path
-from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, Typed, ref_name
+from .lower_expr import CONTEXTS, FIXED, BodyRef, ExprContext, ExprLowerer, Scope, Typed, ref_name
 from .syntax import parse_expression, parse_text
 
 DECLARATIONS = ("material", "body", "constraint", "force", "wind", "sound", "camera", "light", "exclude")
@@ -138,7 +138,7 @@ class Expander:
             value = self.overrides[name]
             self.out.used_overrides.add(name)
         else:
-            value = lowerer.lower(value_tree, scope, ExprContext(time=True, signals=True))
+            value = lowerer.lower(value_tree, scope, CONTEXTS[True, True])
         scope.values[name] = value
         if top and not scope.prefix:
             self.out.parameters[name] = value
@@ -216,7 +216,7 @@ class Expander:
             return
         for i in range(start, end):
             inner = scope.child()
-            inner.values[str(var)] = Typed(E.Const(float(i)), None, lowerer.pos(var))
+            inner.values[str(var)] = Typed(E.Const(float(i)), None)
             self.items(body, inner, lowerer, depth, top=False)
 
     def _spend(self, times: int, size: int, item, lowerer) -> bool:
@@ -231,7 +231,7 @@ class Expander:
         return True
 
     def _integer(self, tree, scope, lowerer) -> int:
-        value = lowerer.lower(tree, scope, ExprContext(time=False))
+        value = lowerer.lower(tree, scope, FIXED)
         if not isinstance(value.node, E.Const) or isinstance(value.node.value, tuple) \
                 or value.dim not in (None, U.DIMENSIONLESS) or value.node.value != int(value.node.value):
             raise lowerer.fail("a loop bound must be a whole number", tree)
@@ -275,7 +275,7 @@ def _name_piece(inner: str, token, scope: Scope, lowerer: ExprLowerer) -> int:
     """The whole number `{inner}` stands for; a problem inside the braces is reported at the name."""
     scratch = ExprLowerer(lowerer.file, Reporter())  # positions inside `inner` are not the file's
     try:
-        value = scratch.lower(_piece_tree(inner), scope, ExprContext(time=False))
+        value = scratch.lower(_piece_tree(inner), scope, FIXED)
     except UnexpectedInput:
         raise lowerer.fail(f"cannot read `{{{inner}}}` in a name", token, "write e.g. `link{i+1}`") from None
     except SceneError as error:

@@ -431,13 +431,24 @@ def _fold_plain(node: Expr) -> Const | None:
     if type(node) is Op:
         args = node.args
         if not all(type(a) is Const and type(a.value) is float for a in args):
-            return None
+            return _scaled_plain(*args) if node.op == "mul" else None
         if node.op == "neg":
             return Const(-args[0].value)
         op = _PLAIN_OPS.get(node.op)
         return Const(op(args[0].value, args[1].value)) if op else None
     if type(node) is Vec and all(type(i) is Const and type(i.value) is float for i in node.items):
         return Const(tuple(i.value for i in node.items))
+    return None
+
+
+def _scaled_plain(a: Expr, b: Expr) -> Const | None:
+    """A vector of numbers times a number (`(1, 2, 3) cm`), component by component as numpy multiplies."""
+    if type(a) is not Const or type(b) is not Const:
+        return None
+    if type(a.value) is float:
+        a, b = b, a  # (IEEE multiplication commutes exactly)
+    if type(b.value) is float and type(a.value) is tuple and all(type(x) is float for x in a.value):
+        return Const(tuple(x * b.value for x in a.value))
     return None
 
 
@@ -471,6 +482,10 @@ def sub(a: Expr, b: Expr) -> Expr:
 
 
 def mul(a: Expr, b: Expr) -> Expr:
+    if type(a) is Const and type(b) is Const and type(a.value) is float and type(b.value) is float:
+        # two numbers (a value times its unit's factor): the rules below, without an Op to fold
+        x, y = a.value, b.value
+        return ZERO if x == 0.0 or y == 0.0 else b if x == 1.0 else a if y == 1.0 else Const(x * y)
     if (_is_zero(a) or _is_zero(b)):
         return _zero_like(Op("mul", (a, b)))
     if _is_one(a):

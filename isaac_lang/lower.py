@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
@@ -56,7 +57,9 @@ class SceneLowerer:
         self.materials: dict[str, ir.Material] = {}
         self.bodies: dict[str, ir.Body] = {}
         self.broken: set[str] = set()  # declared, but with errors: references to them are not errors again
-        self.constraints = ConstraintLowerer(self)
+        # it refers back to this lowerer weakly: a reference cycle would keep every parse tree alive until
+        # Python's cyclic garbage collector ran (and made that collector walk them)
+        self.constraints = ConstraintLowerer(weakref.proxy(self))
 
     # -- driver -------------------------------------------------------------------------------------------
 
@@ -64,8 +67,10 @@ class SceneLowerer:
         name = self._scene_name()
         settings = self._settings()
         solver = self._solver()
-        by_kind = {kind: [d for d in self.x.decls if d.kind == kind] for kind in
+        by_kind = {kind: [] for kind in
                    ("material", "body", "camera", "light", "constraint", "force", "wind", "sound", "exclude")}
+        for decl in self.x.decls:
+            by_kind[decl.kind].append(decl)
         self._each(by_kind["material"], self._material)
         self._each(by_kind["body"], self._body)
         cameras = self._each(by_kind["camera"], self._camera)
@@ -87,11 +92,12 @@ class SceneLowerer:
         )
 
     def _each(self, decls, build) -> list:
-        out, seen = [], {}
+        out, seen = [], {}  # name -> its first declaration
         for decl in decls:
             if decl.name is not None and decl.name in seen:
+                first = seen[decl.name]
                 self.reporter.error(f"{decl.kind} `{decl.name}` is declared twice", decl.lowerer.pos(decl.tree),
-                                    f"the first is at {seen[decl.name]}")
+                                    f"the first is at {first.lowerer.pos(first.tree)}")
                 continue
             try:
                 result = build(decl)
@@ -100,7 +106,7 @@ class SceneLowerer:
                     self.broken.add(decl.name)
                 continue
             if decl.name is not None:
-                seen[decl.name] = decl.lowerer.pos(decl.tree)
+                seen[decl.name] = decl
             if result is not None:
                 out.append(result)
         return out

@@ -15,7 +15,7 @@ from . import expr as E
 from . import ir
 from . import units as U
 from .diagnostics import did_you_mean
-from .lower_expr import AXES, BodyRef, ExprContext, Scope, Typed, ref_name, ref_text
+from .lower_expr import AXES, CONTEXTS, FIXED, BodyRef, ExprContext, Scope, Typed, ref_name, ref_text
 from .props import Props
 
 ELEMENTS = {"tx": ("x", False), "ty": ("y", False), "tz": ("z", False),
@@ -55,7 +55,7 @@ class ConstraintLowerer:
     def _window(self, window, decl):
         if window is None:
             return 0.0, math.inf
-        values = [decl.lowerer.constant(decl.lowerer.lower(c, decl.scope, ExprContext(time=False)), U.TIME,
+        values = [decl.lowerer.constant(decl.lowerer.lower(c, decl.scope, FIXED), U.TIME,
                                         "a constraint's time", c) for c in window.children]
         if window.data == "during":
             start, end = values
@@ -154,7 +154,7 @@ class ConstraintLowerer:
         """(body, body-frame point) from `body @ p`, `body @ world p`, or a bare body (its centre)."""
         if isinstance(tree, Tree) and tree.data in ("anchor", "world_anchor"):
             body = self.body(tree.children[0], scope, decl)
-            value = decl.lowerer.lower(tree.children[1], scope, ExprContext(time=False))
+            value = decl.lowerer.lower(tree.children[1], scope, FIXED)
             point = np.array(decl.lowerer.constant(value, U.LENGTH, "a body point", tree.children[1], size=3))
             if tree.data == "world_anchor":
                 x0, R0 = self.pose(body)
@@ -165,12 +165,12 @@ class ConstraintLowerer:
         raise decl.lowerer.fail(f"expected {what}", tree)
 
     def vector(self, tree, scope, decl, dim, what, time=False):
-        value = decl.lowerer.lower(tree, scope, ExprContext(time=time))
+        value = decl.lowerer.lower(tree, scope, CONTEXTS[time, False])
         node = decl.lowerer.coerce(value, dim, what, tree, size=3)
         return node if time else tuple(node.value)
 
     def scalar(self, tree, scope, decl, dim, what):
-        value = decl.lowerer.lower(tree, scope, ExprContext(time=False))
+        value = decl.lowerer.lower(tree, scope, FIXED)
         return decl.lowerer.constant(value, dim, what, tree)
 
     def direction(self, tree, scope, decl):

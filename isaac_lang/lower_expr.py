@@ -6,6 +6,7 @@ wrong unit becomes a diagnostic.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -30,15 +31,17 @@ AUDIO_SIGNALS = {"impulse", "speed", "normal_force", "wind_speed", "distance", "
 
 @dataclass(frozen=True)
 class Typed:
-    """An expression with its dimension and where it was written."""
+    """An expression with its dimension (a diagnostic about it points at the parse tree it came from)."""
 
     node: E.Expr
     dim: tuple | None
-    pos: SourcePos | None = None
 
     @property
     def size(self) -> int:
-        return E.size_of(self.node)
+        node = self.node
+        if type(node) is E.Const:  # most values: answered without hashing the node for size_of's cache
+            return len(node.value) if type(node.value) is tuple else 0
+        return E.size_of(node)
 
 
 @dataclass(frozen=True)
@@ -94,13 +97,19 @@ class Scope:
         return out
 
 
-@dataclass
+@dataclass(frozen=True)
 class ExprContext:
-    """What an expression may use where it stands."""
+    """What an expression may use where it stands (shared: never changed)."""
 
     time: bool = True  # may depend on t
     signals: bool = False  # envelope(), mic(), noise(): wind speeds
     audio: bool = False  # audio-graph nodes and motion signals: a sound's `play`
+
+
+# the contexts, shared (they never change): (may depend on t, may use signals) -> context
+CONTEXTS = {(time, signals): ExprContext(time=time, signals=signals) for time in (False, True)
+            for signals in (False, True)}
+FIXED = CONTEXTS[False, False]  # a value known before the run: a time window, a body point, a loop bound
 
 
 class ExprLowerer:
@@ -129,16 +138,17 @@ class ExprLowerer:
     def lower(self, tree, scope: Scope, ctx: ExprContext) -> Typed:
         if isinstance(tree, Token):
             raise self.fail(f"unexpected `{tree}`", tree)
-        method = getattr(self, "_" + tree.data, None)
+        method = self._RULES.get(tree.data)
         if method is None:
             raise self.fail(self._misplaced(tree.data), tree)
         try:
-            value = method(tree, scope, ctx)
+            value = method(self, tree, scope, ctx)
         except U.UnitError as error:  # e.g. sqrt(1 m)
             raise self.fail(str(error), tree) from None
         except (ArithmeticError, ValueError) as error:  # folding constants: 1/0, 10^1000...
             raise self.fail(f"this value cannot be computed ({error})", tree) from None
-        if type(value.node) is E.Const and not _finite(value.node.value):
+        number = value.node.value if type(value.node) is E.Const else 0.0
+        if not (math.isfinite(number) if type(number) is float else _finite(number)):
             raise self.fail("this value is not a finite number", tree, "check for a division by zero, log(0) "
                             "or a number too large")
         return value
@@ -151,44 +161,47 @@ class ExprLowerer:
         return f"`{data}` is not valid here"
 
     def _number(self, tree, scope, ctx) -> Typed:
-        return Typed(E.Const(float(tree.children[0])), None, self.pos(tree))
+        return _read_number(tree.children[0].value)
 
     def _string(self, tree, scope, ctx) -> Typed:
-        return Typed(E.Str(str(tree.children[0])[1:-1]), U.DIMENSIONLESS, self.pos(tree))
+        return Typed(E.Str(str(tree.children[0])[1:-1]), U.DIMENSIONLESS)
 
     def _quantity(self, tree, scope, ctx) -> Typed:
         value_tree, unit = tree.children
-        if isinstance(value_tree, Token):
-            value = Typed(E.Const(float(value_tree)), None, self.pos(tree))
-        else:
-            value = self.lower(value_tree, scope, ctx)
         try:
+            if isinstance(value_tree, Token):
+                return _read_quantity(value_tree.value, unit.value)
+            value = self.lower(value_tree, scope, ctx)
             factor, dim = U.parse_unit(str(unit))
-        except U.UnitError as error:
+        except U.UnitError as error:  # (lower() turns the errors inside the value into diagnostics itself)
             raise self.fail(str(error), unit, "units: m cm mm kg g s ms deg rad Hz N Pa GPa, combined as kg/m3")
         if value.dim is not None and value.dim != U.DIMENSIONLESS:
             raise self.fail(f"this value already has a unit ({U.describe(value.dim)})", unit)
-        return Typed(E.mul(value.node, E.Const(factor)), dim, self.pos(tree))
+        return Typed(E.mul(value.node, E.Const(factor)), dim)
 
     def _vector(self, tree, scope, ctx) -> Typed:
         items = [self.lower(child, scope, ctx) for child in tree.children]
+        values = [item.node.value for item in items if type(item.node) is E.Const]
+        numbers = len(values) == len(items) and set(map(type, values)) == {float}  # the common case
+        sizes = [0] * len(items) if numbers else [item.size for item in items]
         dim = None
         # a table of constant rows of one size, as `modes ((440, 3, 1), (880, 5, 0.5))` is; else numbers
-        table = items[0].size and all(i.size == items[0].size and type(i.node) is E.Const for i in items)
-        for item in items:
-            if item.size and not table:
+        table = sizes[0] and all(s == sizes[0] and type(i.node) is E.Const for s, i in zip(sizes, items))
+        for item, size in zip(items, sizes):
+            if size and not table:
                 raise self.fail("a vector's components must be numbers", tree)
-            try:
-                dim = U.unify(dim, item.dim)
-            except U.UnitError as error:
-                raise self.fail(f"vector components disagree: {error}", tree)
-        if table:  # rows as written (E.Vec stacks its items along the last axis: it would transpose them)
-            return Typed(E.Const(tuple(i.node.value for i in items)), dim, self.pos(tree))
-        return Typed(E.fold(E.Vec(tuple(i.node for i in items))), dim, self.pos(tree))
+            if item.dim is not None and item.dim != dim:  # (else U.unify leaves `dim` as it is)
+                try:
+                    dim = U.unify(dim, item.dim)
+                except U.UnitError as error:
+                    raise self.fail(f"vector components disagree: {error}", tree)
+        if table or numbers:  # rows as written (E.Vec stacks its items along the last axis: it would transpose
+            return Typed(E.Const(tuple(values)), dim)  # them); numbers as folding E.Vec of them gives them
+        return Typed(E.fold(E.Vec(tuple(i.node for i in items))), dim)
 
     def _neg(self, tree, scope, ctx) -> Typed:
         value = self.lower(tree.children[0], scope, ctx)
-        return Typed(E.neg(value.node), value.dim, self.pos(tree))
+        return Typed(E.neg(value.node), value.dim)
 
     def _add(self, tree, scope, ctx) -> Typed:
         return self._sum(tree, scope, ctx, E.add)
@@ -204,19 +217,19 @@ class ExprLowerer:
             raise self.fail(str(error), tree)
         if a.size and b.size and a.size != b.size:
             raise self.fail(f"cannot combine a {a.size}-vector and a {b.size}-vector", tree)
-        return Typed(build(a.node, b.node), dim, self.pos(tree))
+        return Typed(build(a.node, b.node), dim)
 
     def _mul(self, tree, scope, ctx) -> Typed:
         a, b = (self.lower(child, scope, ctx) for child in tree.children)
         if a.size and b.size:
             raise self.fail("cannot multiply two vectors with `*`", tree, "use dot(a, b) or cross(a, b)")
-        return Typed(E.mul(a.node, b.node), U.combine(a.dim, b.dim, +1), self.pos(tree))
+        return Typed(E.mul(a.node, b.node), U.combine(a.dim, b.dim, +1))
 
     def _div(self, tree, scope, ctx) -> Typed:
         a, b = (self.lower(child, scope, ctx) for child in tree.children)
         if b.size:
             raise self.fail("cannot divide by a vector", tree)
-        return Typed(E.fold(E.Op("div", (a.node, b.node))), U.combine(a.dim, b.dim, -1), self.pos(tree))
+        return Typed(E.fold(E.Op("div", (a.node, b.node))), U.combine(a.dim, b.dim, -1))
 
     def _pow(self, tree, scope, ctx) -> Typed:
         a, b = (self.lower(child, scope, ctx) for child in tree.children)
@@ -231,29 +244,28 @@ class ExprLowerer:
                 raise self.fail(str(error), tree)
         else:
             dim = a.dim
-        return Typed(E.fold(E.Op("pow", (a.node, b.node))), dim, self.pos(tree))
+        return Typed(E.fold(E.Op("pow", (a.node, b.node))), dim)
 
     def _name_ref(self, tree, scope, ctx) -> Typed:
-        parts = [str(t) for t in tree.children]
-        if len(parts) > 1:
-            raise self.fail(f"`{'.'.join(parts)}` names a body direction, which is only valid in a constraint",
-                            tree)
-        return self.name(parts[0], tree, scope, ctx)
+        if len(tree.children) > 1:
+            raise self.fail(f"`{'.'.join(map(str, tree.children))}` names a body direction, which is only valid "
+                            "in a constraint", tree)
+        return self.name(str(tree.children[0]), tree, scope, ctx)
 
     def name(self, name: str, node, scope: Scope, ctx: ExprContext) -> Typed:
         value = scope.lookup("values", name)
         if isinstance(value, Typed):
-            return Typed(value.node, value.dim, self.pos(node))
+            return value
         if isinstance(value, BodyRef):
             raise self.fail(f"`{name}` is a body here, not a value", node)
         if name == "t":
             if not ctx.time:
                 raise self.fail("this value cannot change over time (`t` is not allowed here)", node)
-            return Typed(E.Var("t"), U.TIME, self.pos(node))
+            return Typed(E.Var("t"), U.TIME)
         if name in E.CONSTANTS:
-            return Typed(E.Const(E.CONSTANTS[name]), None, self.pos(node))
+            return Typed(E.Const(E.CONSTANTS[name]), None)
         if ctx.audio and name in AUDIO_SIGNALS:
-            return Typed(E.Var(name), None, self.pos(node))
+            return Typed(E.Var(name), None)
         known = scope.visible("values") | set(E.CONSTANTS) | ({"t"} if ctx.time else set())
         if ctx.audio:
             known |= AUDIO_SIGNALS
@@ -283,7 +295,7 @@ class ExprLowerer:
         self._check_sizes(fn, args, tree)
         nodes = tuple(self._angle_arg(fn, i, a) for i, a in enumerate(args))
         dim = self._call_dim(fn, args, tree)
-        return Typed(E.fold(E.Call(fn, nodes)), dim, self.pos(tree))
+        return Typed(E.fold(E.Call(fn, nodes)), dim)
 
     def _check_sizes(self, fn: str, args: list, tree) -> None:
         """Vector functions want vectors of the right size; element-wise ones, arguments of one size."""
@@ -337,7 +349,7 @@ class ExprLowerer:
                 args.append(E.Str(ref_name(a, scope, self)))
             else:
                 args.append(self.lower(a, scope, ctx).node)
-        return Typed(E.Call(fn, tuple(args), tuple(sorted(kwargs))), None, self.pos(tree))
+        return Typed(E.Call(fn, tuple(args), tuple(sorted(kwargs))), None)
 
     def _keys(self, tree, scope, ctx) -> Typed:
         interp = "linear"
@@ -367,7 +379,10 @@ class ExprLowerer:
             raise self.fail("key times must increase", tree)
         if len({len(v) if isinstance(v, tuple) else 0 for v in values}) != 1:
             raise self.fail("all keys must have values of the same size", tree)
-        return Typed(E.Keys(interp, tuple(times), tuple(values)), dim, self.pos(tree))
+        return Typed(E.Keys(interp, tuple(times), tuple(values)), dim)
+
+    # the method lowering each kind of tree: `_number` for `number` (one dictionary look-up per node)
+    _RULES: dict = {}
 
     # -- slots --------------------------------------------------------------------------------------------
 
@@ -402,6 +417,22 @@ class ExprLowerer:
         return node_si.value
 
 
+ExprLowerer._RULES = {name: getattr(ExprLowerer, "_" + name) for name in (
+    "number", "string", "quantity", "vector", "neg", "add", "sub", "mul", "div", "pow", "name_ref", "call", "keys")}
+
+@functools.lru_cache(maxsize=4096)
+def _read_number(text: str) -> Typed:
+    """A number as written (`0.5`): scenes repeat the same few, each read once (values are immutable)."""
+    return Typed(E.Const(float(text)), None)
+
+
+@functools.lru_cache(maxsize=4096)
+def _read_quantity(number: str, unit: str) -> Typed:
+    """A number with a unit as written (`5 cm`), in SI, each spelling read once; raises UnitError."""
+    factor, dim = U.parse_unit(unit)
+    return Typed(E.mul(_read_number(number).node, E.Const(factor)), dim)
+
+
 # argument sizes of the vector functions: 0 a number, k a k-vector, None any vector (size >= 1)
 VECTOR_ARGUMENTS = {"length": (None,), "normalize": (None,), "dot": (None, None), "cross": (3, 3),
                     "euler": (0, 0, 0), "axis_angle": (3, 0), "quat": (0, 0, 0, 0)}
@@ -416,6 +447,8 @@ def is_table(node: E.Expr) -> bool:
 def _finite(value) -> bool:
     if type(value) is float:
         return math.isfinite(value)
+    if type(value) is tuple and set(map(type, value)) == {float}:
+        return all(map(math.isfinite, value))  # a vector: the common case, without a call per component
     return all(_finite(v) for v in value) if isinstance(value, tuple) else True
 
 

@@ -6,7 +6,7 @@ from lark import Token, Tree
 from . import expr as E
 from . import units as U
 from .diagnostics import did_you_mean
-from .lower_expr import ExprContext, ExprLowerer, Scope, Typed
+from .lower_expr import CONTEXTS, ExprContext, ExprLowerer, Scope, Typed
 
 TRUE_WORDS = {"on", "true", "yes"}
 FALSE_WORDS = {"off", "false", "no"}
@@ -53,7 +53,7 @@ class Props:
         value = self.node(name)
         if isinstance(value, Tree) and value.data in ("block", "range"):
             raise self.lowerer.fail(f"`{name}` takes a single value here", self.key(name))
-        return self.lowerer.lower(value, self.scope, ctx or ExprContext(time=False))
+        return self.lowerer.lower(value, self.scope, ctx or CONTEXTS[False, False])
 
     # -- typed getters ------------------------------------------------------------------------------------
 
@@ -61,7 +61,7 @@ class Props:
         """A number in SI; with time=True the result may be an expression of t (else a float)."""
         if name not in self.entries:
             return default
-        value = self.typed(name, ExprContext(time=time, signals=signals))
+        value = self.typed(name, CONTEXTS[time, signals])
         node = self.lowerer.coerce(value, dim, f"`{name}`", self.node(name), 0, bare_ok)
         if time or signals:
             return node
@@ -70,7 +70,7 @@ class Props:
     def vector(self, name: str, dim, default=None, *, size=3, time=False):
         if name not in self.entries:
             return default
-        value = self.typed(name, ExprContext(time=time))
+        value = self.typed(name, CONTEXTS[time, False])
         node = self.lowerer.coerce(value, dim, f"`{name}`", self.node(name), size)
         if time:
             return node
@@ -128,7 +128,7 @@ class Props:
             raise self.lowerer.fail(f"`{name}` takes a range: `{name} START .. END`", value)
         ends = []
         for tree in value.children:
-            typed = self.lowerer.lower(tree, self.scope, ExprContext(time=False))
+            typed = self.lowerer.lower(tree, self.scope, CONTEXTS[False, False])
             ends.append(self.lowerer.constant(typed, dim, f"`{name}`", tree))
         return tuple(ends)
 

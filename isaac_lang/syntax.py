@@ -1,8 +1,12 @@
-"""Stage 1, parse: text -> lark parse tree (LALR, positions kept), syntax errors as diagnostics."""
+"""Stage 1, parse: text -> lark parse tree (LALR, positions kept), syntax errors as diagnostics.
+
+The grammar is compiled by lark (`parser()`); a text is parsed by `ParseLoop`, which runs lark's tables
+faster, and parsed again by lark itself (`reference_parser()`) only when it has a syntax error, for lark's
+description of it.
+"""
 from __future__ import annotations
 
 import functools
-import operator
 import re
 from importlib import resources
 
@@ -10,6 +14,7 @@ from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
 from .diagnostics import Reporter, SourcePos, did_you_mean
+from .parse_loop import ParseLoop, Rejected
 
 KEYWORDS = ("scene", "let", "include", "material", "body", "constraint", "kind", "force", "wind", "sound",
             "camera", "light", "solver", "exclude", "part", "use", "for")
@@ -25,85 +30,47 @@ TOKEN_WORDS = {
 
 @functools.lru_cache(maxsize=1)
 def parser() -> Lark:
+    """The grammar compiled by lark: its tables and tree-building actions drive `parse_loop()`."""
+    return _lark(propagate_positions=False)
+
+
+@functools.lru_cache(maxsize=1)
+def parse_loop() -> ParseLoop:
+    """The parser of texts (trees with positions)."""
+    return ParseLoop(parser())
+
+
+@functools.lru_cache(maxsize=1)
+def reference_parser() -> Lark:
+    """lark's own parse, positions included: it describes syntax errors, and tests check the loop against it."""
+    return _lark(propagate_positions=True)
+
+
+def _lark(propagate_positions: bool) -> Lark:
     grammar = resources.files("isaac_lang.grammar").joinpath("isaac.lark").read_text(encoding="utf-8")
-    lark = Lark(grammar, parser="lalr", propagate_positions=False, start=["start", "expr"],
+    return Lark(grammar, parser="lalr", propagate_positions=propagate_positions, start=["start", "expr"],
                 maybe_placeholders=True, cache=True)
-    # positions: lark's `propagate_positions=True` costs as much as the parse itself; `_positioned` keeps only
-    # what diagnostics read (line, column, end_line, end_column), at a fraction of the cost
-    callbacks = lark.parser.parser.parser.callbacks  # the LALR reduce actions: rule -> tree builder
-    for rule, build in callbacks.items():
-        callbacks[rule] = _PASS_THROUGH if _passes_through(rule) else _positioned(build)
-    return lark
-
-
-_PASS_THROUGH = operator.itemgetter(0)
-
-
-def _passes_through(rule) -> bool:
-    """`?sum: product`: the reduce returns its one child unchanged (two thirds of all reduces in a scene)."""
-    (symbol,) = rule.expansion if len(rule.expansion) == 1 else (None,)
-    return (rule.options.expand1 and not rule.alias and not rule.options.empty_indices and symbol is not None
-            and not symbol.is_term and not symbol.name.startswith("_"))
-
-
-def _positioned(build):
-    """A reduce action that gives the tree it returns `meta` positions, as lark's propagate_positions does:
-    a tree spans its children including the keywords and brackets filtered out of it (`container_*`); a tree
-    passed through a `?rule` keeps its own span and widens only its container."""
-
-    def reduce(children):
-        node = build(children)
-        if type(node) is not Tree or not children or (node is children[0] and len(children) == 1):
-            return node  # a token, nothing spanned, or a tree passed through a `?rule` unchanged
-        first, last = children[0], children[-1]
-        if type(first) is Token:
-            line, column = first.line, first.column
-        elif first._meta is not None and not first._meta.empty:  # `_meta`: `meta` would create one
-            line, column = first._meta.container_line, first._meta.container_column
-        else:
-            line, column = _edge(children, start=True)
-        if type(last) is Token:
-            end_line, end_column = last.end_line, last.end_column
-        elif last._meta is not None and not last._meta.empty:
-            end_line, end_column = last._meta.container_end_line, last._meta.container_end_column
-        else:
-            end_line, end_column = _edge(reversed(children), start=False)
-        meta = node.meta
-        if line is None or end_line is None:
-            return node
-        if meta.empty:
-            meta.line, meta.column, meta.end_line, meta.end_column = line, column, end_line, end_column
-            meta.empty = False
-        meta.container_line, meta.container_column = line, column
-        meta.container_end_line, meta.container_end_column = end_line, end_column
-        return node
-
-    return reduce
-
-
-def _edge(children, start: bool):
-    """The first (or last) position among children, skipping trees that span nothing."""
-    for child in children:
-        if isinstance(child, Token):
-            return (child.line, child.column) if start else (child.end_line, child.end_column)
-        if not child.meta.empty:
-            meta = child.meta
-            return ((meta.container_line, meta.container_column) if start
-                    else (meta.container_end_line, meta.container_end_column))
-    return None, None
 
 
 def parse_text(text: str, file: str, reporter: Reporter) -> Tree | None:
     """Parse a whole file; on a syntax error record a diagnostic and return None."""
     try:
-        return parser().parse(text, start="start")
+        return parse_loop().parse(text, "start")
+    except Rejected:
+        pass  # a syntax error: lark describes it
+    try:
+        return reference_parser().parse(text, start="start")
     except UnexpectedInput as error:
         reporter.error(*describe_syntax_error(error, text, file))
         return None
 
 
 def parse_expression(text: str) -> Tree:
-    return parser().parse(text, start="expr")
+    """The tree of one expression; raises lark's UnexpectedInput on a syntax error."""
+    try:
+        return parse_loop().parse(text, "expr")
+    except Rejected:
+        return reference_parser().parse(text, start="expr")
 
 
 def describe_syntax_error(error: UnexpectedInput, text: str, file: str):

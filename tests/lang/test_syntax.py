@@ -1,5 +1,6 @@
-"""The parser (isaac_lang/syntax.py): the positions its lean reduce wrapper gives every tree are the ones lark's
-own `propagate_positions=True` gives, on every example scene, fixture and a generated scene."""
+"""The parser (isaac_lang/syntax.py, isaac_lang/parse_loop.py): the positions the parse loop gives every tree are
+the ones lark's own `propagate_positions=True` gives, on every example scene and fixture (fuzzed texts:
+test_parse_loop.py)."""
 from __future__ import annotations
 
 from importlib import resources
@@ -8,7 +9,7 @@ from pathlib import Path
 import pytest
 from lark import Lark, Tree
 
-from isaac_lang.syntax import parser
+from isaac_lang.syntax import parse_loop
 
 ROOT = Path(__file__).resolve().parents[2]
 TEXTS = sorted((ROOT / "scenes").glob("*.isaac")) + sorted((Path(__file__).parent / "data").rglob("*.isaac"))
@@ -36,9 +37,9 @@ def spans(tree, out=None) -> list:
 @pytest.mark.parametrize("path", TEXTS, ids=lambda p: p.name)
 def test_positions_match_lark(reference, path):
     text = path.read_text(encoding="utf-8")
-    assert spans(parser().parse(text, start="start")) == spans(reference.parse(text, start="start"))
+    assert spans(parse_loop().parse(text, "start")) == spans(reference.parse(text, start="start"))
 
 
 @pytest.mark.parametrize("text", ["-(1 + 2) * 3 m", "(1, 2, 3) m + keys cubic { 0 s: 1, 1 s: 2 }", "f(a @ (0, 1, 0))"])
 def test_expression_positions_match_lark(reference, text):
-    assert spans(parser().parse(text, start="expr")) == spans(reference.parse(text, start="expr"))
+    assert spans(parse_loop().parse(text, "expr")) == spans(reference.parse(text, start="expr"))
