@@ -180,7 +180,7 @@ def scaling_table(rows: list, growth: list) -> str:
         lines = []
         for key in dict.fromkeys((r["engine"], r["solver"], r["linear"]) for r in mine):
             pts = {int(r["bodies"]): r for r in mine if (r["engine"], r["solver"], r["linear"]) == key}
-            chosen = "/".join(_text(pts[n]["chosen"]) for n in sizes if n in pts) if key[0] == "isaac" else ""
+            chosen = "/".join(_text(pts[n]["chosen"]) for n in sizes if n in pts) if key[:2] == ("isaac", "dynamics") else ""
             cells = [" ".join(str(k) for k in key if k != "-"), chosen]
             for n in sizes:
                 r = pts.get(n)

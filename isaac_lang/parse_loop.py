@@ -96,6 +96,12 @@ class ParseLoop:
 
     def parse(self, text: str, start: str = "start"):
         """The tree of `text` from rule `start`; raises Rejected where lark would raise a syntax error."""
+        try:
+            return self._parse(text, start)
+        except KeyError:  # a terminal that the table has no action for in the state it comes in
+            raise Rejected from None
+
+    def _parse(self, text: str, start: str):
         states, ignore, newline, gotos = self.states, self.ignore, self.newline, self.gotos
         state, end_state = self.start_states[start], self.end_states[start]
         # the stacks: LALR states, values (tokens, trees), and the (first, last) token of each value's text
@@ -118,15 +124,20 @@ class ParseLoop:
                     pos = after
                     continue
                 value = text[pos:end]
-                if keywords is not None and kind == "NAME":
+                if kind == "NAME" and keywords is not None:
                     kind = keywords.get(value, kind)  # `scene`, `let`, ... where the state takes them
                 token = _new_token(Token, value)
-                token.type, token.value, token.start_pos, token.end_pos = kind, value, pos, end
-                token.line, token.column = line, pos - line_start + 1
+                token.type = kind
+                token.value = value
+                token.start_pos = pos
+                token.end_pos = end
+                token.line = line
+                token.column = pos - line_start + 1
                 if kind in newline and "\n" in value:
                     line += value.count("\n")
                     line_start = pos + value.rindex("\n") + 1
-                token.end_line, token.end_column = line, end - line_start + 1
+                token.end_line = line
+                token.end_column = end - line_start + 1
                 if after != end:
                     newlines = text.count("\n", end, after)
                     if newlines:
@@ -137,9 +148,7 @@ class ParseLoop:
                 kind, token = "$END", None
             # -- reduce while the table says so, then shift the token (or accept at the end) ---------------
             while True:
-                arg = actions.get(kind)
-                if arg is None:
-                    raise Rejected
+                arg = actions[kind]
                 if type(arg) is int:  # shift
                     if token is None:
                         raise Rejected
@@ -154,7 +163,8 @@ class ParseLoop:
                 else:
                     if length:
                         children = value_stack[-length:]
-                        head, tail = span_stack[-length], span_stack[-1]
+                        head = span_stack[-length]
+                        tail = span_stack[-1]
                         span = Span((head[0], tail[1])) if head and tail else _span(span_stack[-length:])
                         del state_stack[-length:], value_stack[-length:], span_stack[-length:]
                     else:
@@ -167,7 +177,9 @@ class ParseLoop:
                         value = children[0]
                     else:
                         value = _new(Tree)
-                        value.data, value.children, value._meta = name, children, span
+                        value.data = name
+                        value.children = children
+                        value._meta = span
                     value_stack.append(value)
                     span_stack.append(span)
                 # the goto, and the pass-through reduces the same token then makes (a number goes through
