@@ -9,22 +9,25 @@ lines/second (the acceptance figure), CPU seconds of the process (less sensitive
 and the load average at the end.
 
 Target: 20,000 lines/s. Measured on the 2-core CI machine (Xeon, 6,012 lines, 9.7 tokens/line; the example scenes
-average 6.7), this script and the code before the work side by side, best of 5, load average 2.1-3.0:
+average 6.7), this script side by side with the code before the work, best of 5, other work running:
 
-    before the "scene language" issue          4,200-5,500 lines/s
-    after its first round                       6,400-7,000 lines/s wall and CPU (lark's own LALR loop)
-    now                                         19,600-20,700 lines/s wall, 20,000-21,000 CPU
+    before the "scene language" issue            4,200-5,500 lines/s
+    before this work (lark's own LALR loop)      6,760-7,160 lines/s wall and CPU, load 1.7-2.0
+    now                                         21,300-21,800 lines/s wall and CPU, load 1.7-2.0
+                                                (at load 3.2 both slow down alike: ~5,600 before, ~17,000
+                                                 with a slightly earlier revision of this work)
 
-and 2.0 G instructions per load under callgrind, from 5.4 G (valgrind --tool=callgrind, one load_text of the
-6,012 lines less a small warm-up; load-independent). What changed: isaac_lang/parse_loop.py runs lark's tables
-in one loop (tokens and the blanks after them in one regex match, pass-through reduces taken at once, trees and
-positions built without lark's wrappers; lark itself parses again only a text with a syntax error, to describe
-it); Python's cyclic garbage collector is paused while a scene loads (it walked every token and tree again and
-again: a third of the time), and a reference cycle that kept the parse trees alive after lowering is gone;
-lowering reads numbers and quantities once per spelling and skips dead work (positions of values nobody read,
-a dataclass per context, a numpy round trip for `(1, 2, 3) cm`). The lark-cython plugin was measured and not
-adopted: 0.29-0.33 s for the lexer and parser alone, against 0.16-0.18 s for the parse loop with trees.
-What remains is about 60% parse (lexing and the LALR bookkeeping, ~25 kinstr/token) and 35% lowering.
+and 1.93 G instructions per load under callgrind, from 5.38 G (valgrind --tool=callgrind, one load_text of the
+6,012 lines less a small warm-up: a figure that other work on the machine does not move). What changed:
+isaac_lang/parse_loop.py runs lark's tables in one loop (a token and the blanks after it in one regex match,
+pass-through reduces taken at once, trees and positions built without lark's wrappers; lark itself parses
+again only a text with a syntax error, to describe it); Python's cyclic garbage collector is paused while a
+scene loads (it walked every token and tree again and again: a quarter of the time), and a reference cycle that
+kept the parse trees alive after lowering is gone; lowering reads numbers and quantities once per spelling and
+skips dead work (positions of values nobody read, a dataclass per context, a numpy round trip for
+`(1, 2, 3) cm`). The lark-cython plugin was measured and not adopted: 0.29-0.33 s for lark's loop in Cython,
+against 0.15-0.18 s for the parse loop, trees and positions included. Of what remains, 61% is parsing (regex
+matches and the LALR bookkeeping, ~21 k instructions per token), 34% lowering, 4% expansion.
 """
 from __future__ import annotations
 

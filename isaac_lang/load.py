@@ -49,8 +49,8 @@ def _collector_paused():
     """Python's cyclic garbage collector paused while a scene loads (then resumed as it was).
 
     Loading allocates tens of thousands of small objects (tokens, trees, expressions) that live until the IR is
-    built; the collector, run every few hundred allocations, walks them again and again: a third of the time
-    of a large scene. Reference counting frees everything as usual; cycles, if any, wait for the next run.
+    built; the collector, run every few hundred allocations, walks them again and again: a quarter of the
+    time of a large scene. Reference counting frees everything as usual; cycles, if any, wait for the next run.
     """
     enabled = gc.isenabled()
     gc.disable()

@@ -99,14 +99,14 @@ class Scope:
 
 @dataclass(frozen=True)
 class ExprContext:
-    """What an expression may use where it stands (shared: never changed)."""
+    """What an expression may use where it stands."""
 
     time: bool = True  # may depend on t
     signals: bool = False  # envelope(), mic(), noise(): wind speeds
     audio: bool = False  # audio-graph nodes and motion signals: a sound's `play`
 
 
-# the contexts, shared (they never change): (may depend on t, may use signals) -> context
+# the contexts, made once and shared: (may depend on t, may use signals) -> context
 CONTEXTS = {(time, signals): ExprContext(time=time, signals=signals) for time in (False, True)
             for signals in (False, True)}
 FIXED = CONTEXTS[False, False]  # a value known before the run: a time window, a body point, a loop bound
@@ -138,7 +138,7 @@ class ExprLowerer:
     def lower(self, tree, scope: Scope, ctx: ExprContext) -> Typed:
         if isinstance(tree, Token):
             raise self.fail(f"unexpected `{tree}`", tree)
-        method = self._RULES.get(tree.data)
+        method = _RULES.get(tree.data)
         if method is None:
             raise self.fail(self._misplaced(tree.data), tree)
         try:
@@ -147,8 +147,7 @@ class ExprLowerer:
             raise self.fail(str(error), tree) from None
         except (ArithmeticError, ValueError) as error:  # folding constants: 1/0, 10^1000...
             raise self.fail(f"this value cannot be computed ({error})", tree) from None
-        number = value.node.value if type(value.node) is E.Const else 0.0
-        if not (math.isfinite(number) if type(number) is float else _finite(number)):
+        if type(value.node) is E.Const and not _finite(value.node.value):
             raise self.fail("this value is not a finite number", tree, "check for a division by zero, log(0) "
                             "or a number too large")
         return value
@@ -168,13 +167,16 @@ class ExprLowerer:
 
     def _quantity(self, tree, scope, ctx) -> Typed:
         value_tree, unit = tree.children
-        try:
-            if isinstance(value_tree, Token):
+        if isinstance(value_tree, Token):  # `5 cm`, the common case
+            try:
                 return _read_quantity(value_tree.value, unit.value)
-            value = self.lower(value_tree, scope, ctx)
+            except U.UnitError as error:
+                raise self.fail(str(error), unit, UNITS_HINT)
+        value = self.lower(value_tree, scope, ctx)
+        try:
             factor, dim = U.parse_unit(str(unit))
-        except U.UnitError as error:  # (lower() turns the errors inside the value into diagnostics itself)
-            raise self.fail(str(error), unit, "units: m cm mm kg g s ms deg rad Hz N Pa GPa, combined as kg/m3")
+        except U.UnitError as error:
+            raise self.fail(str(error), unit, UNITS_HINT)
         if value.dim is not None and value.dim != U.DIMENSIONLESS:
             raise self.fail(f"this value already has a unit ({U.describe(value.dim)})", unit)
         return Typed(E.mul(value.node, E.Const(factor)), dim)
@@ -381,9 +383,6 @@ class ExprLowerer:
             raise self.fail("all keys must have values of the same size", tree)
         return Typed(E.Keys(interp, tuple(times), tuple(values)), dim)
 
-    # the method lowering each kind of tree: `_number` for `number` (one dictionary look-up per node)
-    _RULES: dict = {}
-
     # -- slots --------------------------------------------------------------------------------------------
 
     def coerce(self, value: Typed, dim: tuple, what: str, node, size: int = 0,
@@ -417,8 +416,11 @@ class ExprLowerer:
         return node_si.value
 
 
-ExprLowerer._RULES = {name: getattr(ExprLowerer, "_" + name) for name in (
+# the method lowering each kind of tree: `number` -> `ExprLowerer._number` (one look-up per node)
+_RULES = {name: getattr(ExprLowerer, "_" + name) for name in (
     "number", "string", "quantity", "vector", "neg", "add", "sub", "mul", "div", "pow", "name_ref", "call", "keys")}
+UNITS_HINT = "units: m cm mm kg g s ms deg rad Hz N Pa GPa, combined as kg/m3"
+
 
 @functools.lru_cache(maxsize=4096)
 def _read_number(text: str) -> Typed:
