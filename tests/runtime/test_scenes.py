@@ -115,12 +115,19 @@ def test_gears_ratio_and_falling_weight():
     assert np.max(np.abs(speed - 0.1 * np.abs(w[:, drive, 2]))) < 1e-9
 
 
-def test_selfassembly_follows_the_critically_damped_curve():
-    arrays = run("selfassembly").recorder.arrays()
+def assembly_errors(arrays) -> tuple:
+    """(largest move before the joint switches on at 1 s, largest distance of the gap from the critically damped
+    curve g0 (1 + w0 s) exp(-w0 s) after it), for the selfassembly scene; g0 = 0.4 m, w0 = 2 pi 2 Hz."""
     t = arrays["time"]
     gap = np.linalg.norm(body_points(arrays, 1, (-0.05, 0, 0)) - body_points(arrays, 0, (0.05, 0, 0)), axis=1)
     before = t < 1.0
-    assert np.max(np.abs(arrays["position"][before] - arrays["position"][0])) == 0.0
     s = t[~before] - 1.0
     g0, w0 = 0.4, 2 * math.pi * 2
-    assert np.max(np.abs(gap[~before] - g0 * (1 + w0 * s) * np.exp(-w0 * s))) < 1e-4 * g0
+    moved = np.max(np.abs(arrays["position"][before] - arrays["position"][0]))
+    return moved, np.max(np.abs(gap[~before] - g0 * (1 + w0 * s) * np.exp(-w0 * s)))
+
+
+def test_selfassembly_follows_the_critically_damped_curve():
+    moved, curve_error = assembly_errors(run("selfassembly").recorder.arrays())
+    assert moved == 0.0
+    assert curve_error < 1e-4 * 0.4
