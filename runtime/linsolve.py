@@ -6,7 +6,8 @@ nothing. Three solvers, all returning (lam (m,), SolveInfo):
 
 * dense   `assemble_dense` + `solve_dense`: A (m,m) built by pairwise comparison of slot bodies, Cholesky;
           O(m^2) memory, O(m^3) time. `DensePattern` does the comparisons once per active row set (the
-          runtime's path; `assemble_dense` is its reference) and calls LAPACK potrf/potrs directly.
+          runtime's path for many bodies; `assemble_dense` is its reference); `solve_dense` calls LAPACK posv
+          (potrf + potrs) directly.
 * sparse  `SparsePattern.build` once per active row set, then `solve_sparse`: A as CSC filled by one
           bincount per step, scipy SuperLU. Near O(m) for chains and bounded-degree trees.
 * tree    `TreeSolver` (Baraff 1996, "Linear-time dynamics using Lagrange multipliers"), O(nodes), below.
@@ -64,7 +65,7 @@ DENSE_MAX_ROWS = 110
 # sparse/tree 0.33/0.37 ms at 60 rows, 0.44/0.43 at 72, 1.07/0.66 at 120; 2400 ms vs 17 ms at 3000 rows).
 TREE_HUB_ROWS = 72
 
-_POTRF, _POTRS = scipy.linalg.lapack.dpotrf, scipy.linalg.lapack.dpotrs
+_POSV = scipy.linalg.lapack.dposv
 
 
 @dataclass
@@ -91,9 +92,9 @@ def _dynamic_slots(rb: np.ndarray, dynamic_mask) -> np.ndarray:
 
 
 def _relative_residual(r: np.ndarray, rhs: np.ndarray) -> float:
-    # ||x|| = sqrt(x . x), as np.linalg.norm computes it for a vector
-    nb = math.sqrt(float(np.dot(rhs, rhs)))
-    nr = math.sqrt(float(np.dot(r, r)))
+    # ||x|| = sqrt(x . x), as np.linalg.norm computes it for a vector (ndarray.dot: no dispatch)
+    nb = math.sqrt(rhs.dot(rhs))
+    nr = math.sqrt(r.dot(r))
     return nr / nb if nb > 0 else nr
 
 
@@ -160,7 +161,8 @@ class DensePattern:
         np.multiply(inv_mass.take(b)[:, None], J[:, :3], out=MJ[:, :3])
         MJ[:, 3:] = np.matmul(inv_inertia_world.take(b, axis=0), J[:, 3:, None])[:, :, 0]
         # P[2r+s, 2c+t] = J[r,s] . (M^-1 J^T)[c,t] where both slots name the same body, else 0
-        P = np.matmul(J, MJ.T)
+        # (ndarray.dot: the same BLAS product as matmul for 2-D operands, without the gufunc machinery)
+        P = J.dot(MJ.T)
         P *= self.same
         # A[r,c] = sum over the four slot pairings (s,t) of P[2r+s, 2c+t]: columns first, then rows
         P = P[:, 0::2] + P[:, 1::2]
@@ -189,18 +191,19 @@ def solve_dense(A, rhs) -> tuple[np.ndarray, SolveInfo]:
     m = len(rhs)
     if m == 0:
         return np.zeros(0), SolveInfo("cholesky", 0.0, False, 0)
-    scale = float(np.maximum.reduce(A.diagonal()))
+    # the diagonals as Python floats: max/min of a list cost less than numpy reductions on a few entries
+    scale = max(A.diagonal().tolist())
     if not scale > 0:
         return _dense_fallback(A, rhs, "A is zero")
-    # LAPACK potrf / potrs directly: what scipy's cho_factor / cho_solve call, without their per-call checks
-    c, info = _POTRF(A, lower=1, clean=0)
+    # LAPACK posv (potrf, then potrs with the factor) directly: what scipy's cho_factor / cho_solve call,
+    # without their per-call checks
+    c, lam, info = _POSV(A, rhs, lower=1)
     if info != 0:
         return _dense_fallback(A, rhs, "cholesky failed (not positive definite)")
-    min_pivot = float(np.minimum.reduce(c.diagonal())) ** 2
+    min_pivot = min(c.diagonal().tolist()) ** 2
     if not min_pivot > RANK_RTOL * scale:
         return _dense_fallback(A, rhs, f"cholesky pivot {min_pivot / scale:.1e} of max diagonal")
-    lam, _ = _POTRS(c, rhs, lower=1)
-    res = _relative_residual(A @ lam - rhs, rhs)
+    res = _relative_residual(A.dot(lam) - rhs, rhs)
     # a non-finite lam gives a non-finite residual
     res = res if math.isfinite(res) else math.inf
     if res <= RESIDUAL_RTOL:

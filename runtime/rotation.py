@@ -32,8 +32,8 @@ def quat_conjugate(q: np.ndarray) -> np.ndarray:
 
 def quat_normalize(q: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """Scale quaternions to unit length (in place when out is q)."""
-    # |q| = sqrt(sum q_i^2), the same sum np.linalg.norm(q, axis=-1) forms, without its overhead
-    norm = np.sqrt(np.add.reduce(q * q, axis=-1, keepdims=True))
+    # |q| = sqrt(sum q_i^2): one vecdot (a single gufunc call, no temporary), cheaper than a reduction
+    norm = np.sqrt(np.vecdot(q, q))[..., None]
     return np.divide(q, norm, out=out)
 
 
@@ -72,13 +72,22 @@ def quat_to_matrix(q: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     if out is None:
         out = np.empty(stack + (3, 3))
     # write straight into out when it is one block of memory, else through a temporary
-    flat = out.reshape(stack + (9,)) if out.flags.c_contiguous else np.empty(stack + (9,))
+    contiguous = out.flags.c_contiguous
+    rows = out.reshape(-1, 9) if contiguous else np.empty((q.size // 4, 9))
+    quat_to_matrix_rows(q.reshape(-1, 4), rows)
+    if not contiguous:
+        out[...] = rows.reshape(stack + (3, 3))
+    return out
+
+
+def quat_to_matrix_rows(q: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """The rotation matrices of unit quaternions q (n,4) as rows of 9 entries, written into out (n,9), which must
+    be C-contiguous."""
     # R_ij = delta_ij + sum_ab Q_ab,ij q_a q_b: one outer product and one matrix product for the whole stack
-    qq = q[..., :, None] * q[..., None, :]
-    np.matmul(qq.reshape(stack + (16,)), _MATRIX_OF_QUAT, out=flat)
-    flat += _EYE_FLAT
-    if not out.flags.c_contiguous:
-        out[...] = flat.reshape(stack + (3, 3))
+    # (ndarray.dot: the same BLAS product as matmul for 2-D operands, without the gufunc machinery)
+    qq = q[:, :, None] * q[:, None, :]
+    qq.reshape(len(q), 16).dot(_MATRIX_OF_QUAT, out=out)
+    out += _EYE_FLAT
     return out
 
 
@@ -213,9 +222,10 @@ def quat_from_euler_xyz(angles: np.ndarray) -> np.ndarray:
 def skew(v: np.ndarray) -> np.ndarray:
     """Cross-product matrices [v]x (..., 3, 3) with [v]x u = v x u: ([v]x)_ik = sum_j eps_ijk v_j."""
     v = np.asarray(v, dtype=float)
-    return np.matmul(v, _SKEW_OF_VECTOR).reshape(v.shape[:-1] + (3, 3))
+    # every entry is one term +-v_j: exact whatever the product sums (ndarray.dot: no gufunc machinery)
+    return v.dot(_SKEW_OF_VECTOR).reshape(v.shape[:-1] + (3, 3))
 
 
 def world_inverse_inertia(R: np.ndarray, inv_inertia_body: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """I^-1 = R I_b^-1 R^T for every body: (n, 3, 3)."""
-    return np.matmul(np.matmul(R, inv_inertia_body), np.swapaxes(R, -1, -2), out=out)
+    return np.matmul(np.matmul(R, inv_inertia_body), R.swapaxes(-1, -2), out=out)

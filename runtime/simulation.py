@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .dynamics import Dynamics
-from .integrate import INTEGRATORS, Stages
+from .dynamics import Dynamics, contiguous_slice
+from .integrate import INTEGRATORS, PACKED, Q, V, W, X, Stages
 from .kinematics import evaluate_paths
 from .plan import Plan, PlanOptions, compile_plan
 from .rotation import quat_to_matrix
@@ -36,7 +36,10 @@ class NumericalError(Exception):
 
 @dataclass
 class State:
-    """The mutable part: time and the struct-of-arrays state of every body."""
+    """The mutable part: time and the struct-of-arrays state of every body.
+
+    x, q, v, w are views of y, each body's state packed in one row (integrate.py's layout), which the integrator
+    loads and advances in one numpy call each; write them in place (x[...] = ...), never rebind them."""
 
     t: float
     x: np.ndarray  # (n,3) centre of mass, m
@@ -44,10 +47,24 @@ class State:
     v: np.ndarray  # (n,3) m/s
     w: np.ndarray  # (n,3) world angular velocity, rad/s
     steps: int = 0
+    y: np.ndarray | None = None  # (n,13) rows [x q v w]; None for a State built from separate arrays
 
     @classmethod
     def initial(cls, plan: Plan) -> "State":
-        return cls(plan.start, plan.x0.copy(), plan.q0.copy(), plan.v0.copy(), plan.w0.copy())
+        y = np.empty((plan.n, PACKED))
+        y[:, X], y[:, Q], y[:, V], y[:, W] = plan.x0, plan.q0, plan.v0, plan.w0
+        return cls(plan.start, y[:, X], y[:, Q], y[:, V], y[:, W], y=y)
+
+    def integrated(self):
+        """What the integrators take: the packed array, or the tuple (x, q, v, w)."""
+        return self.y if self.y is not None else (self.x, self.q, self.v, self.w)
+
+
+def _equal_moments(inertia_body: np.ndarray) -> np.ndarray | None:
+    """The moments (k,) of bodies whose inertia tensors (k,3,3) are each a multiple of the identity (spheres,
+    cubes), or None if one of them is not."""
+    moments = inertia_body[:, 0, 0]
+    return moments if np.array_equal(inertia_body, moments[:, None, None] * np.eye(3)) else None
 
 
 class Simulation:
@@ -67,6 +84,9 @@ class Simulation:
         self._a = np.zeros((plan.n, 3))
         self._alpha = np.zeros((plan.n, 3))
         self._switches = np.array(plan.constraints.switch_times() if plan.constraints else [])
+        self._dynamic = contiguous_slice(np.flatnonzero(plan.dynamic))  # slice, or indices, of the dynamic bodies
+        self._positions: dict[int, tuple] = {}  # id(epoch) -> (epoch, its active rows with a position-level C)
+        self._moments = _equal_moments(plan.inertia_body[self._dynamic])
         # collisions: detection and impulses after every step (runtime.collide), built only when the plan has them
         self.collider = plan.collisions.start(self) if plan.collisions is not None else None
         # observers called after every step, e.g. the audio stage recording motion signals
@@ -100,14 +120,18 @@ class Simulation:
 
     def energy(self) -> float:
         """Kinetic plus gravitational potential energy of the dynamic bodies, J."""
-        plan, s = self.plan, self.state
-        d = plan.dynamic
-        R = quat_to_matrix(s.q[d])
-        inertia_world = R @ plan.inertia_body[d] @ np.swapaxes(R, 1, 2)
+        plan, s, d = self.plan, self.state, self._dynamic
+        mass, v, w = plan.mass[d], s.v[d], s.w[d]
+        if self._moments is not None:
+            # I = R (I_b 1) R^T = I_b 1 for bodies whose inertia is the same about every axis: w . I w = I_b |w|^2
+            spin = self._moments.dot(np.vecdot(w, w))
+        else:
+            # the body-frame angular velocity u = R^T w: w . I w = w . R I_b R^T w = u . I_b u
+            u = np.matmul(w[:, None, :], quat_to_matrix(s.q[d]))[:, 0]
+            spin = np.add.reduce(np.vecdot(u, np.matmul(plan.inertia_body[d], u[:, :, None])[:, :, 0]))
         # E = sum 1/2 m v^2 + 1/2 w . I w - m g . x
-        kinetic = 0.5 * np.sum(plan.mass[d] * np.einsum("ni,ni->n", s.v[d], s.v[d]))
-        kinetic += 0.5 * np.einsum("ni,nij,nj->", s.w[d], inertia_world, s.w[d])
-        potential = -np.sum(plan.mass[d] * (s.x[d] @ plan.gravity))
+        kinetic = 0.5 * (mass.dot(np.vecdot(v, v)) + spin)
+        potential = -mass.dot(s.x[d].dot(plan.gravity))
         return float(kinetic + potential)
 
     def constraint_errors(self) -> tuple:
@@ -116,16 +140,21 @@ class Simulation:
         if c is None:
             return 0.0, -1
         s = self.state
-        epoch = c.epoch_at(s.t)
-        if not epoch.active.size:
+        positions = self._position_rows(c.epoch_at(s.t))
+        if not positions.size:
             return 0.0, -1
-        block = self.dynamics.rows_at(self.dynamics.frame(s.x, s.q, s.v, s.w, s.t))
-        active = epoch.active[~block.velocity_only[epoch.active]]
-        if not active.size:
-            return 0.0, -1
-        errors = np.abs(block.C[active])
+        block = self.dynamics.positions_at(self.dynamics.frame(s.x, s.q, s.v, s.w, s.t))
+        errors = np.abs(block.C[positions])
         worst = int(np.argmax(errors))
-        return float(errors[worst]), int(active[worst])
+        return float(errors[worst]), int(positions[worst])
+
+    def _position_rows(self, epoch) -> np.ndarray:
+        """The epoch's active rows that have a position-level C (not velocity-only), found once per epoch."""
+        entry = self._positions.get(id(epoch))
+        if entry is None or entry[0] is not epoch:
+            velocity_only = self.dynamics.scratch.rows.velocity_only  # structure: written once, with the rows
+            entry = self._positions[id(epoch)] = (epoch, epoch.active[~velocity_only[epoch.active]])
+        return entry[1]
 
     # -- live inputs --------------------------------------------------------------------------------------
 
@@ -185,7 +214,7 @@ class Simulation:
         if self.procedural is not None:
             self.procedural.step(s, h, epoch)
         else:
-            self._integrate(self.dynamics.accelerations, s.t, h, (s.x, s.q, s.v, s.w), self._stages, epoch)
+            self._integrate(self.dynamics.accelerations, s.t, h, s.integrated(), self._stages, epoch)
         s.t += h
         s.steps += 1
         self._sync_kinematics()
@@ -202,9 +231,13 @@ class Simulation:
 
     def _check_finite(self) -> None:
         s = self.state
-        speed = max(np.abs(s.v).max(initial=0.0), np.abs(s.w).max(initial=0.0))
-        if np.isfinite(speed) and speed < RUNAWAY_SPEED and np.isfinite(s.x).all():
+        # the largest |entry| of each state column, by one reduction (a NaN anywhere in a column gives NaN): every
+        # position finite, and every |v| and |w| component below RUNAWAY_SPEED (NaN fails the comparison)
+        packed = s.y if s.y is not None else np.concatenate((s.x, s.q, s.v, s.w), axis=1)
+        largest = np.maximum.reduce(np.abs(packed), axis=0, initial=0.0).tolist()
+        if all(c < RUNAWAY_SPEED for c in largest[V.start:]) and all(math.isfinite(c) for c in largest[X]):
             return
+        speed = max(np.abs(s.v).max(initial=0.0), np.abs(s.w).max(initial=0.0))
         bad = ~(np.isfinite(s.x).all(axis=1) & np.isfinite(s.v).all(axis=1) & np.isfinite(s.w).all(axis=1))
         bad |= np.maximum(np.abs(s.v).max(axis=1), np.abs(s.w).max(axis=1)) >= RUNAWAY_SPEED
         name = self.plan.names[int(np.flatnonzero(bad)[0])] if bad.any() else "?"

@@ -77,7 +77,7 @@ def compile_audio(scene, plan=None, block: int = BLOCK) -> AudioPlan:
     fs = float(scene.audio.rate)
     needs, warnings = Needs(), []
     folder = getattr(plan, "folder", None)
-    sounds = [SoundCompiler(scene, sound, fs, block, needs, warnings, folder).compile() for sound in scene.sounds]
+    sounds = [SoundCompiler(scene, sound, fs, needs, warnings, folder).compile() for sound in scene.sounds]
     start = plan.start if plan is not None else scene.time.start
     end = plan.end if plan is not None else scene.time.end
     channels = max(1, min(2, int(scene.audio.channels)))

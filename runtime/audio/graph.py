@@ -26,7 +26,7 @@ from .nodes import (ADSR, Binary, Constant, Control, DelayLine, Decay, Filter, F
                     FileEnvelope, Mix, Negate, Node, Noise, Pan, Sine)
 from .noise import COLORS, seed_for
 from .scrape import (DEFAULT_MAX_SPEED, ROLL_BETA, SCRAPE_BETA, TEXTURE_STEP, Scrape, SurfaceProfile)
-from .wind_sound import STROUHAL, WHISTLE_Q, Whistle, WindNoise, cross_dimension
+from .wind_sound import STROUHAL, WHISTLE_Q, Whistle, WindNoise, cross_dimension, merge_whistles
 
 EVENT_SIGNALS = {"impulse", "speed", "normal_force", "distance", "wind_speed"}
 EXCITERS = {"modal", "impact", "pulse"}
@@ -62,9 +62,9 @@ class SoundPlan:
 class SoundCompiler:
     """Compiles one sound. Errors are SceneErrors at the sound's position."""
 
-    def __init__(self, scene, sound, fs: float, block: int, needs: Needs, warnings: list, folder=None):
+    def __init__(self, scene, sound, fs: float, needs: Needs, warnings: list, folder=None):
         self.folder = folder  # the scene's folder, where textures and recordings are found
-        self.scene, self.sound, self.fs, self.block = scene, sound, fs, block
+        self.scene, self.sound, self.fs = scene, sound, fs
         self.needs, self.warnings = needs, warnings
         self.bodies = {b.name: b for b in scene.bodies}
         self.materials = {m.name: m for m in scene.materials}
@@ -164,19 +164,16 @@ class SoundCompiler:
             raise self.fail("modal(): none of the bodies has modes", "give a body `modes ((f, decay, gain), ...)` "
                             "or a material with `young` and `density`")
         drive = self.node(args.positional[1], None) if len(args.positional) > 1 else None
-        return Modal(banks, strength, drive, args.number("tau", None))
+        return Modal(banks, strength, self.fs, drive, args.number("tau", None))
 
     def _fn_impact(self, args, strength):
         names = args.bodies(0, lambda: self._hit_body_names(modal=False), many=True)
         options = args.mode_options()
-        banks = {}
-        for name in names:
-            bank = self._bank(name, options, required=False)
-            if bank is not None:
-                banks[name] = bank
-        ringing = {name: ringing_of(self._material(name)) if name in banks else 0.0 for name in names}
+        banks = [b for b in (self._bank(name, options, required=False) for name in names) if b is not None]
+        ringing = {name: ringing_of(self._material(name)) if any(b.body == name for b in banks) else 0.0
+                   for name in names}
         seed = (self.scene.seed, self.sound.name, self.counter)
-        return Impact(banks, ringing, strength, seed, args.number("tau", None))
+        return Impact(banks, ringing, strength, seed, self.fs, args.number("tau", None))
 
     def _fn_pulse(self, args, strength):
         duration = args.number(0, None) if args.positional else args.number("duration", None)
@@ -196,7 +193,7 @@ class SoundCompiler:
                                      f"{M.NYQUIST_MARGIN:g} x Nyquist at {self.fs:g} Hz: it is silent")
             return None
         self.modes[name] = modes
-        return BodyBank(name, modes, self.fs, self.block)
+        return BodyBank(name, modes)
 
     def _material(self, body_name: str):
         body = self.bodies[body_name]
@@ -333,7 +330,7 @@ class SoundCompiler:
         return Pan(args.node(0, strength), args.node(1 if len(args.positional) > 1 else "position", default=0.0))
 
     def _fn_mix(self, args, strength):
-        return Mix([self.node(a, strength) for a in args.positional])
+        return Mix(merge_whistles([self.node(a, strength) for a in args.positional]))
 
     def _fn_gain(self, args, strength):
         if "db" in args.kwargs:

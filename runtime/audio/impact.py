@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from .excitation import half_sine
-from .nodes import Node, as_block
+from .nodes import FRAME, Node, as_block
 from .noise import seed_for
 from .resonator import ResonatorBank
 
@@ -39,15 +39,36 @@ BURST_Q = 0.8
 
 
 class BodyBank:
-    """The resonator bank of one body, with the parts of pulses that run past the end of a block."""
+    """A body's modes, as the compiler hands them to an exciter."""
 
-    def __init__(self, body: str, modes, fs: float, block: int):
+    def __init__(self, body: str, modes):
         self.body, self.modes = body, modes
-        self.bank = ResonatorBank(modes.freq, modes.decay, modes.gain, fs, block)
+
+
+class Banks:
+    """The resonator banks of an exciter's bodies as one ResonatorBank, their modes side by side (each body's
+    tested for silence on its own), with the parts of pulses that run past the end of a block."""
+
+    def __init__(self, bodies: list, fs: float):
+        self.bodies = [b.body for b in bodies]
+        self.modes = {b.body: b.modes for b in bodies}
+        sizes = [len(b.modes) for b in bodies]
+        edges = np.cumsum([0] + sizes)
+        self.slices = {b.body: slice(lo, hi) for b, lo, hi in zip(bodies, edges[:-1], edges[1:])}
+        freq, decay, gain = (np.concatenate([getattr(b.modes, name) for b in bodies] or [np.zeros(0)])
+                             for name in ("freq", "decay", "gain"))
+        self.bank = ResonatorBank(freq, decay, gain, fs, FRAME, groups=sizes or None)
         self.pending = []  # (gains, samples still to feed from the start of the next block)
 
-    def render(self, n: int, inputs: list) -> np.ndarray:
-        """inputs: (gains, k0, x) with x of any length; what does not fit in this block waits."""
+    def gains(self, body: str, local_point) -> np.ndarray:
+        """(M,) the input gains of a hit on `body` at a body-frame point: its modes' excitation, 0 elsewhere."""
+        out = np.zeros(self.bank.size)
+        out[self.slices[body]] = self.modes[body].excitation(local_point)
+        return out
+
+    def render(self, start: int, n: int, inputs: list) -> np.ndarray:
+        """The block of n samples from sample `start`. inputs: (gains (M,), k0, x) with x of any length; what
+        does not fit in this block waits."""
         fitted, pending = [], []
         for gains, x in self.pending:
             fitted.append((gains, 0, x[:n]))
@@ -61,7 +82,7 @@ class BodyBank:
         self.pending = pending
         if not fitted and self.bank.silent:
             return np.zeros(n)
-        return self.bank.render(n, fitted)
+        return self.bank.render(n, fitted, start)
 
 
 class Exciter(Node):
@@ -81,45 +102,41 @@ class Exciter(Node):
 class Modal(Exciter):
     """modal(body, ...): see the module docstring."""
 
-    def __init__(self, banks: list, strength, drive: Node | None = None, tau: float | None = None):
+    def __init__(self, banks: list, strength, fs: float, drive: Node | None = None, tau: float | None = None):
         super().__init__(strength)
-        self.banks, self.drive, self.tau = banks, drive, tau
+        self.banks, self.drive, self.tau = Banks(banks, fs), drive, tau
 
     def children(self):
         return (self.drive,) if self.drive is not None else ()
 
     def render(self, ctx):
-        inputs = {id(b): [] for b in self.banks}
+        inputs = []
         for k0, hit in ctx.hits:
             s = ctx.strength(self.strength, hit)
             if s == 0.0:
                 continue
             x = self.pulse(self.tau or hit.tau, ctx.fs)
-            touched = [b for b in self.banks if b.body in hit.bodies] or self.banks
-            for b in touched:
-                inputs[id(b)].append((s * b.modes.excitation(hit.local.get(b.body)), k0, x))
+            touched = [body for body in self.banks.bodies if body in hit.bodies] or self.banks.bodies
+            for body in touched:
+                inputs.append((s * self.banks.gains(body, hit.local.get(body)), k0, x))
         if self.drive is not None:
             x = as_block(self.drive.render(ctx), ctx.n)
             x = x.mean(axis=0) if x.ndim > 1 else x
-            for b in self.banks:
-                inputs[id(b)].append((np.ones(len(b.modes)), 0, x))
-        out = np.zeros(ctx.n)
-        for b in self.banks:
-            out += b.render(ctx.n, inputs[id(b)])
-        return out
+            inputs.append((np.ones(self.banks.bank.size), 0, x))
+        return self.banks.render(ctx.start, ctx.n, inputs)
 
 
 class Impact(Exciter):
     """impact(a, b): the modal banks of the bodies hit, plus a click and a noise burst set by the materials.
     `ringing`: body -> rho in [0, 1] (0 for a body without modes)."""
 
-    def __init__(self, banks: dict, ringing: dict, strength, seed: tuple, tau: float | None = None):
+    def __init__(self, banks: list, ringing: dict, strength, seed: tuple, fs: float, tau: float | None = None):
         super().__init__(strength)
-        self.banks, self.ringing, self.seed, self.tau = banks, ringing, seed, tau
+        self.banks, self.ringing, self.seed, self.tau = Banks(banks, fs), ringing, seed, tau
         self.pending = []  # contact sound (click + burst) still to play: arrays starting at the next block
 
     def render(self, ctx):
-        inputs = {name: [] for name in self.banks}
+        inputs = []
         out = np.zeros(ctx.n)
         for x in self.pending:
             out[: min(len(x), ctx.n)] += x[: ctx.n]
@@ -130,18 +147,15 @@ class Impact(Exciter):
                 continue
             tau = self.tau or hit.tau
             for name in hit.bodies:
-                if name in self.banks:
-                    bank = self.banks[name]
-                    inputs[name].append((s * bank.modes.excitation(hit.local.get(name)), k0, self.pulse(tau, ctx.fs)))
+                if name in self.banks.slices:
+                    inputs.append((s * self.banks.gains(name, hit.local.get(name)), k0, self.pulse(tau, ctx.fs)))
             rho = max((self.ringing.get(name, 0.0) for name in hit.bodies), default=0.0)
             contact = s * self._contact_sound(tau, rho, ctx.fs, hit)
             room = ctx.n - k0
             out[k0:k0 + min(room, len(contact))] += contact[:room]
             if len(contact) > room:
                 self.pending.append(contact[room:])
-        for name, bank in self.banks.items():
-            out += bank.render(ctx.n, inputs[name])
-        return out
+        return out + self.banks.render(ctx.start, ctx.n, inputs)
 
     def _contact_sound(self, tau: float, rho: float, fs: float, hit) -> np.ndarray:
         """The click (force pulse, unit peak) and the noise burst of one contact, as one finite signal."""

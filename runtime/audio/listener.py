@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from .nodes import cos_sin
+
 SPEED_OF_SOUND = 343.0  # m/s, air at 20 C
 REFERENCE_DISTANCE = 1.0  # m
 # longest delay a listener delay line keeps: sources farther than this many metres arrive late by at most this
@@ -36,25 +38,27 @@ class ListenerStage:
         offset = source - self.position
         return np.sqrt(np.einsum("ij,ij->i", offset, offset))
 
-    def render(self, x, source: np.ndarray, distance: np.ndarray) -> np.ndarray:
-        """(channels, n) of a sound's block x ((n,) or (2, n)) at source positions (n, 3)."""
-        n = source.shape[0]
-        x = np.broadcast_to(x, (n,)) if np.ndim(x) == 0 else x
-        # g = gain d_ref / max(d, d_ref)
-        x = x * (self.gain * REFERENCE_DISTANCE / np.maximum(distance, REFERENCE_DISTANCE))
-        if self.delayed:
-            x = self._delay(x, distance / SPEED_OF_SOUND * self.fs)
-        if self.channels == 1:
-            return (x.mean(axis=0) if x.ndim > 1 else x)[None, :]
-        if x.ndim > 1:
-            return x
-        if not n or (source[0] == source).all():
-            # a source that stays put over the block (a sound at the listener, a hit's point): one pan
+    def render(self, x: np.ndarray, source: np.ndarray, distance: np.ndarray, out: np.ndarray) -> None:
+        """Add to out (channels, n) a sound's block x ((n,) or (2, n)) from source positions (n, 3) at distances
+        (n,); a source that stays put over the block may come as (1, 3) and (1,)."""
+        n = x.shape[-1]
+        if n and len(source) > 1 and (source[0] == source).all():
+            # a source that stays put over the block (a hit's point, a body at rest): one gain, one pan
             source, distance = source[:1], distance[:1]
-        offset = source[:, 0] - self.position[0]
-        p = np.where(distance > 1e-9, np.clip(offset / np.maximum(distance, 1e-9), -1.0, 1.0), 0.0)
-        angle = (p + 1.0) * np.pi / 4.0
-        return np.stack([x * np.cos(angle), x * np.sin(angle)])
+        # g = gain d_ref / max(d, d_ref)
+        gain = self.gain * REFERENCE_DISTANCE / np.maximum(distance, REFERENCE_DISTANCE)
+        if self.delayed:
+            x, gain = self._delay(x * gain, distance / SPEED_OF_SOUND * self.fs), 1.0
+        if self.channels == 1:
+            out[0] += (x.mean(axis=0) if x.ndim > 1 else x) * gain
+        elif x.ndim > 1:
+            out += x * gain
+        else:
+            offset = source[:, 0] - self.position[0]
+            p = np.where(distance > 1e-9, np.clip(offset / np.maximum(distance, 1e-9), -1.0, 1.0), 0.0)
+            cos, sin = cos_sin((p + 1.0) * np.pi / 4.0)
+            out[0] += x * (gain * cos)
+            out[1] += x * (gain * sin)
 
     def _delay(self, x: np.ndarray, delay: np.ndarray) -> np.ndarray:
         n = x.shape[-1]

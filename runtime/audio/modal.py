@@ -134,12 +134,12 @@ def beam_function(x, length: float, root: float, derivative: int = 0) -> np.ndar
     1 - s = (cos bL - sin bL - e^{-bL}) / (sinh bL - sin bL).
     """
     x = np.asarray(x, float)
-    b = root / length
-    bl = root
-    denom = math.sinh(bl) - math.sin(bl)
-    one_minus = (math.cos(bl) - math.sin(bl) - math.exp(-bl)) / denom
-    one_plus = 2.0 - one_minus  # 1 + s
-    s = 1.0 - one_minus
+    if np.ndim(root):  # several roots (x a point): the modes side by side
+        one_minus, one_plus, s = _end_terms_of(tuple(np.asarray(root, float)))
+        b = np.asarray(root, float) / length
+    else:
+        one_minus, one_plus, s = _end_terms(root)
+        b = root / length
     grow, fall = np.exp(b * x), np.exp(-b * x)
     even_h = 0.5 * (one_minus * grow + one_plus * fall)  # cosh - s sinh
     odd_h = 0.5 * (one_minus * grow - one_plus * fall)  # sinh - s cosh
@@ -151,6 +151,19 @@ def beam_function(x, length: float, root: float, derivative: int = 0) -> np.ndar
     return b * b * (even_h - c + s * sn)
 
 
+def _end_terms(bl: float) -> tuple:
+    """1 - s, 1 + s and s of beam_function for the root bl."""
+    denom = math.sinh(bl) - math.sin(bl)
+    one_minus = (math.cos(bl) - math.sin(bl) - math.exp(-bl)) / denom
+    return one_minus, 2.0 - one_minus, 1.0 - one_minus
+
+
+@functools.lru_cache(maxsize=64)
+def _end_terms_of(roots: tuple) -> tuple:
+    """_end_terms of several roots, as three arrays."""
+    return tuple(np.array(v) for v in zip(*(_end_terms(r) for r in roots)))
+
+
 def bar_modes(length: float, gyration: float, young: float, density: float, count: int = DEFAULT_COUNT,
               axis: int = 0) -> Modes:
     """Free-free Euler-Bernoulli bar along body axis `axis` (centred on the body origin)."""
@@ -160,7 +173,7 @@ def bar_modes(length: float, gyration: float, young: float, density: float, coun
 
     def shape(point, roots=roots, length=length, axis=axis):
         x = np.clip(point[axis] + 0.5 * length, 0.0, length)
-        phi = np.array([beam_function(x, length, r) for r in roots]) * 0.5  # 1 at the free ends
+        phi = beam_function(x, length, roots) * 0.5  # 1 at the free ends
         return EXCITATION_UNIFORM + (1.0 - EXCITATION_UNIFORM) * np.abs(phi)
 
     return Modes(freq, np.zeros(count), np.ones(count), "free-free bar", shape)
@@ -229,8 +242,7 @@ def plate_modes(a: float, b: float, h: float, young: float, poisson: float, dens
 def _basis(x: float, length: float, terms: int) -> np.ndarray:
     out = np.empty(terms)
     out[0], out[1] = 1.0, 2.0 * x / length - 1.0
-    for i, root in enumerate(free_free_roots(terms - 2)):
-        out[i + 2] = beam_function(x, length, root)
+    out[2:] = beam_function(x, length, np.array(free_free_roots(terms - 2)))
     return out
 
 

@@ -22,6 +22,10 @@ from .noise import ColoredNoise
 
 # a time-varying filter recomputes its coefficients every this many samples (1.5 ms at 44.1 kHz)
 CONTROL_PERIOD = 64
+# samples: a grid fixed in the render's samples, on which nodes take the decisions that would otherwise fall at
+# the edges of blocks (a whistle reads its envelope at the end of each frame, a bank tests for silence), so that
+# the samples do not depend on the block size
+FRAME = 2048
 # filter frequencies are kept inside [LOWEST_FILTER, HIGHEST_FILTER * fs]
 LOWEST_FILTER = 10.0
 HIGHEST_FILTER = 0.45
@@ -36,6 +40,15 @@ def as_block(value, n: int) -> np.ndarray:
 
 def is_constant(value) -> bool:
     return np.ndim(value) == 0
+
+
+def cos_sin(angle: np.ndarray) -> tuple:
+    """cos and sin of an array of angles from t = tan(angle / 2): cos = (1 - t^2) / (1 + t^2), sin = 2 t / (1 + t^2)
+    (one transcendental function instead of two; numpy vectorizes tan, not cos and sin)."""
+    t = np.tan(0.5 * angle)
+    t2 = t * t
+    scale = 1.0 / (1.0 + t2)
+    return (1.0 - t2) * scale, 2.0 * t * scale
 
 
 class Node:
@@ -218,6 +231,31 @@ def biquad(kind: str, freq: float, q: float, fs: float) -> tuple:
     return np.array(b) / a0, np.array((1.0, -2 * cos / a0, (1 - alpha) / a0))
 
 
+def biquads(kind: str, freq: np.ndarray, q, fs: float) -> tuple:
+    """biquad of S frequencies (S,) and Q (S,) or one, at once: b, a (S, 3)."""
+    f = np.clip(freq, LOWEST_FILTER, HIGHEST_FILTER * fs)
+    w0 = 2.0 * math.pi * f / fs
+    cos, alpha = np.cos(w0), np.sin(w0) / (2.0 * np.maximum(q, 1e-3))
+    one, zero = np.ones_like(cos), np.zeros_like(cos)
+    if kind == "lowpass":
+        b = ((1 - cos) / 2, 1 - cos, (1 - cos) / 2)
+    elif kind == "highpass":
+        b = ((1 + cos) / 2, -(1 + cos), (1 + cos) / 2)
+    elif kind == "bandpass":  # constant 0 dB peak gain
+        b = (alpha, zero, -alpha)
+    else:
+        raise ValueError(kind)
+    a0 = 1 + alpha
+    return np.stack(b, axis=1) / a0[:, None], np.stack((one, -2 * cos / a0, (1 - alpha) / a0), axis=1)
+
+
+def segment_means(x: np.ndarray, period: int) -> np.ndarray:
+    """(S,) the mean of x (n,) over each stretch of `period` samples (the last may be shorter), S = ceil(n / period)."""
+    full = len(x) // period
+    means = x[:full * period].reshape(full, period).mean(axis=1)
+    return np.append(means, x[full * period:].mean()) if len(x) > full * period else means
+
+
 class Filter(Node):
     """lowpass(x, freq, q), highpass(x, freq, q), bandpass(x, freq, q): biquads whose frequency and Q may
     follow signals (coefficients recomputed every CONTROL_PERIOD samples, memory carried across)."""
@@ -234,21 +272,18 @@ class Filter(Node):
         x = as_block(self.x.render(ctx), ctx.n)
         f, q = self.freq.render(ctx), self.q.render(ctx)
         if is_constant(f) and is_constant(q):
-            return self._run(biquad(self.kind, float(f), float(q), ctx.fs), x)
-        f, q = as_block(f, ctx.n), as_block(q, ctx.n)
-        y = np.empty(x.shape)
-        for lo in range(0, ctx.n, CONTROL_PERIOD):
-            hi = min(lo + CONTROL_PERIOD, ctx.n)
-            coefficients = biquad(self.kind, float(np.mean(f[lo:hi])), float(np.mean(q[lo:hi])), ctx.fs)
-            y[..., lo:hi] = self._run(coefficients, x[..., lo:hi])
-        return y
-
-    def _run(self, coefficients, x):
+            coefficients = biquad(self.kind, float(f), float(q), ctx.fs)
+            if self.filter is None:
+                self.filter = PoleFilter(*coefficients, channels=x.shape[:-1])
+            else:
+                self.filter.set(*coefficients)
+            return self.filter.run(x)
+        # one biquad per CONTROL_PERIOD samples, at the means of f and Q over them
+        f, q = segment_means(as_block(f, ctx.n), CONTROL_PERIOD), segment_means(as_block(q, ctx.n), CONTROL_PERIOD)
+        b, a = biquads(self.kind, f, q, ctx.fs)
         if self.filter is None:
-            self.filter = PoleFilter(*coefficients, channels=x.shape[:-1])
-        else:
-            self.filter.set(*coefficients)
-        return self.filter.run(x)
+            self.filter = PoleFilter(b[0], a[0], channels=x.shape[:-1])
+        return self.filter.run_swept(x, b, a, CONTROL_PERIOD)
 
 
 # ---- envelopes ------------------------------------------------------------------------------------------
@@ -405,5 +440,5 @@ class Pan(Node):
         if x.ndim > 1:
             x = x.mean(axis=0)
         p = np.clip(self.position.render(ctx), -1.0, 1.0)
-        angle = (p + 1.0) * np.pi / 4.0
-        return np.stack([x * np.cos(angle), x * np.sin(angle)])
+        cos, sin = cos_sin((p + 1.0) * np.pi / 4.0)
+        return np.stack([x * cos, x * sin])

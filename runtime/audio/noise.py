@@ -6,6 +6,7 @@ that a run is reproducible and removing one event does not change the noise of a
 from __future__ import annotations
 
 import hashlib
+import math
 
 import numpy as np
 
@@ -66,8 +67,17 @@ def fractal_profile(n: int, beta: float, rng: np.random.Generator) -> np.ndarray
 
 
 def read_periodic(profile: np.ndarray, position: np.ndarray) -> np.ndarray:
-    """Linear interpolation of a periodic profile at fractional sample positions."""
+    """Linear interpolation of a periodic profile at fractional sample positions. Positions within a stretch of
+    the profile not much longer than their count (a block read at a speed up to one profile sample per sample)
+    go through np.interp over that stretch, unrolled."""
     n = len(profile)
+    position = np.asarray(position, float)
+    if position.size == 0:
+        return np.zeros(position.shape)
+    first, last = math.floor(position.min()), math.floor(position.max()) + 1
+    if last - first <= 2 * position.size + 2:
+        stretch = np.arange(first, last + 1)
+        return np.interp(position, stretch, profile[stretch % n])
     base = np.floor(position)
     frac = position - base
     i = base.astype(np.int64) % n

@@ -42,6 +42,62 @@ class Series:
         return self.data[: self.size]
 
 
+class StepTable:
+    """The signals sampled at every step, N steps: times (N,) s, positions (p,N,3) of the placed bodies, wind
+    (w,N) speeds; each signal's samples lie together in memory (what the renderer reads). Preallocated for the
+    run's steps (`reserve`), doubled if a run takes more. The record's series of these signals are its
+    columns (`StepColumn`): they share its memory and its size."""
+
+    def __init__(self, positions: int, winds: int, steps: int = 256):
+        self.times = np.zeros(steps)
+        self.positions = np.zeros((positions, steps, 3))
+        self.wind = np.zeros((winds, steps))
+        self.size = 0
+
+    def reserve(self, steps: int) -> None:
+        """Room for `steps` steps in all (the steps written so far kept, the new ones zero)."""
+        if steps <= len(self.times):
+            return
+        self.times = _grown(self.times, 0, steps, self.size)
+        self.positions = _grown(self.positions, 1, steps, self.size)
+        self.wind = _grown(self.wind, 1, steps, self.size)
+
+    def next_step(self) -> int:
+        """The index of the step to write next (the table grows when full); `size` counts it once written."""
+        if self.size == len(self.times):
+            self.reserve(2 * self.size)
+        return self.size
+
+
+def _grown(array: np.ndarray, axis: int, steps: int, kept: int) -> np.ndarray:
+    """A zero array with `steps` along `axis`, the first `kept` of `array` copied."""
+    shape = list(array.shape)
+    shape[axis] = steps
+    grown = np.zeros(shape)
+    index = (slice(None),) * axis + (slice(0, kept),)
+    grown[index] = array[index]
+    return grown
+
+
+class StepColumn:
+    """One signal of a StepTable as a read-only Series: `data`, `size`, `view()` (what the renderer reads)."""
+
+    def __init__(self, table: StepTable, name: str, index: int | None = None):
+        self.table, self.name, self.index = table, name, index
+
+    @property
+    def data(self) -> np.ndarray:
+        array = getattr(self.table, self.name)
+        return array if self.index is None else array[self.index]
+
+    @property
+    def size(self) -> int:
+        return self.table.size
+
+    def view(self) -> np.ndarray:
+        return self.data[: self.table.size]
+
+
 @dataclass
 class Hit:
     """One collision, as the sounds hear it."""
@@ -67,11 +123,12 @@ class Hit:
 class MotionRecord:
     start: float
     fs: float
-    times: Series = field(default_factory=Series)  # the steps' end times
-    positions: dict = field(default_factory=dict)  # body -> Series (3,), at `times`
+    steps: StepTable  # what is sampled at every step: times, positions, wind (the columns below)
+    times: StepColumn  # the steps' end times
+    positions: dict = field(default_factory=dict)  # body -> StepColumn (3,), at `times`
     contacts: dict = field(default_factory=dict)  # pair -> {"times", "speed", "force", "roll": Series,
     #                                                        ("local", body): Series (3,)}, at their own times
-    wind: dict = field(default_factory=dict)  # body name, or ("listener", wind) -> Series, at `times`
+    wind: dict = field(default_factory=dict)  # body name, or ("listener", wind) -> StepColumn, at `times`
     hits: list = field(default_factory=list)
 
     @property
@@ -86,11 +143,17 @@ class Recorder:
     def __init__(self, plan, sim):
         self.plan = plan
         self.record = new_record(plan)
+        self.record.steps.reserve(_steps_of(sim.plan) + 1)
         self.index = {name: i for i, name in enumerate(sim.plan.names)}
+        # the placed bodies in the run (their columns of the table) and their rows of the state
+        placed = [(column, self.index[body]) for column, body in enumerate(self.record.positions)
+                  if body in self.index]
+        self.placed_columns = np.array([c for c, _ in placed], np.int64)
+        self.placed_rows = np.array([i for _, i in placed], np.int64)
         self.air = WindField(plan.scene, sim.plan) if self.record.wind else None
-        # the record's wind series, in the order WindField.speeds gives their values
-        self.wind_probes = WindProbes.of(self.record.wind, self.index) if self.record.wind else None
-        self.wind_series = [self.record.wind[key] for key in self.wind_probes.keys] if self.record.wind else []
+        # where the wind is sampled, in the order of the record's wind columns
+        self.wind_probes = WindProbes.of(self.record.wind, self.index, _never_moving(sim.plan)) \
+            if self.record.wind else None
         self.frames = np.asarray(sim.plan.frame_times, float)
         self.next_frame = int(np.searchsorted(self.frames, sim.state.t, side="right"))
         self.seen = 0
@@ -99,7 +162,7 @@ class Recorder:
 
     def observe(self, sim, h: float) -> None:
         first = self.seen
-        new = sim.events[first:]
+        new = sim.events[first:] if len(sim.events) > first else NO_EVENTS
         self.seen = first + len(new)
         self._sample(sim, new, first)
 
@@ -110,14 +173,21 @@ class Recorder:
             if event.get("kind", "impact") != "contact":
                 local = self.local_points(state, event.get("point", (0.0, 0.0, 0.0)), event.get("bodies", ()))
                 record.hits.append(make_hit(plan, event, local, first + k))
-        record.times.append(t)
-        for body, series in record.positions.items():
-            series.append(state.x[self.index[body]] if body in self.index else 0.0)
+        self._sample_step(state, t)
         if record.contacts:
             self._contacts(new_events, state)
-        if record.wind:
-            for series, value in zip(self.wind_series, self.air.speeds(self.wind_probes, state, t)):
-                series.append(value)
+
+    def _sample_step(self, state, t: float) -> None:
+        """This step's samples in the table: time, placed bodies' positions, wind speeds (a body not in the run
+        keeps position 0 and wind 0)."""
+        table = self.record.steps
+        k = table.next_step()
+        table.times[k] = t
+        if len(self.placed_rows):
+            table.positions[self.placed_columns, k] = state.x[self.placed_rows]
+        if self.wind_probes is not None:
+            self.air.speeds(self.wind_probes, state, t, out=table.wind[:, k])
+        table.size = k + 1
 
     def local_points(self, state, point, bodies) -> dict:
         """A world point in the frame of each of the bodies, from the state at the end of the step."""
@@ -175,6 +245,9 @@ class Recorder:
             points.append(local[body] if body in local else (points.view()[-1] if points.size else np.zeros(3)))
 
 
+NO_EVENTS: list = []  # the new events of a step without any (never appended to)
+
+
 def _of_pair(event: dict, pair: tuple) -> bool:
     bodies = tuple(event.get("bodies", ()))
     if not pair:
@@ -196,19 +269,37 @@ def make_hit(plan, event: dict, local: dict, index: int) -> Hit:
 
 def new_record(plan) -> MotionRecord:
     needs = plan.needs
-    record = MotionRecord(plan.start, plan.fs)
-    for body in needs.bodies:
-        record.positions[body] = Series((3,))
+    placed = list(needs.bodies)
+    winds = list(needs.wind_bodies) + [("listener", wind) for wind in needs.listener_winds]
+    table = StepTable(len(placed), len(winds))
+    record = MotionRecord(plan.start, plan.fs, table, StepColumn(table, "times"))
+    for column, body in enumerate(placed):
+        record.positions[body] = StepColumn(table, "positions", column)
     for pair in needs.pairs:
         series = {"times": Series(), "speed": Series(), "force": Series(), "roll": Series()}
         for body in pair:
             series[("local", body)] = Series((3,))
         record.contacts[pair] = series
-    for body in needs.wind_bodies:
-        record.wind[body] = Series()
-    for wind in needs.listener_winds:
-        record.wind[("listener", wind)] = Series()
+    for column, key in enumerate(winds):
+        record.wind[key] = StepColumn(table, "wind", column)
     return record
+
+
+def _never_moving(sim_plan) -> np.ndarray:
+    """(n,) bool: bodies that stay where they start: static, not on a kinematic path, at rest (a static body
+    given a velocity drifts with it)."""
+    still = ~np.asarray(sim_plan.dynamic, bool)
+    if sim_plan.kinematics is not None:
+        still[np.asarray(sim_plan.kinematics.index, int)] = False
+    return still & ~np.any(sim_plan.v0 != 0, axis=1) & ~np.any(sim_plan.w0 != 0, axis=1)
+
+
+def _steps_of(sim_plan) -> int:
+    """At most how many steps a run takes: its span over the step, plus one per frame and per switch (a step
+    is cut short at each)."""
+    switches = len(sim_plan.constraints.switch_times()) if sim_plan.constraints is not None else 0
+    span = max(sim_plan.end - sim_plan.start, 0.0)
+    return int(math.ceil(span / sim_plan.step)) + len(sim_plan.frame_times) + switches + 1
 
 
 # ---- records made by hand ---------------------------------------------------------------------------------
@@ -226,11 +317,11 @@ def synthetic_record(plan, events: list, end: float | None = None, contacts: dic
     pose = {b.name: (np.asarray(E.evaluate(b.position, {"t": plan.start}), float),
                      np.asarray(E.evaluate(b.orientation, {"t": plan.start}), float)) for b in scene.bodies}
     times = np.arange(plan.start, end + step / 2, step)
-    for t in times:
-        record.times.append(t)
-    for body, series in record.positions.items():
-        for _ in times:
-            series.append(pose[body][0] if body in pose else 0.0)
+    table = record.steps
+    table.reserve(len(times))
+    table.times[: len(times)] = times
+    for column, body in enumerate(record.positions):
+        table.positions[column, : len(times)] = pose[body][0] if body in pose else 0.0
     for pair, series in record.contacts.items():
         given = (contacts or {}).get(pair) or (contacts or {}).get(tuple(reversed(pair)))
         t_given, v_given, f_given = given if given is not None else ([plan.start, end], [0.0, 0.0], [0.0, 0.0])
@@ -239,10 +330,10 @@ def synthetic_record(plan, events: list, end: float | None = None, contacts: dic
                 series[name].append(value)
             for body in pair:
                 series[("local", body)].append(np.zeros(3))
-    for key, series in record.wind.items():
+    for column, key in enumerate(record.wind):
         t_given, u_given = (wind or {}).get(key, ([plan.start, end], [0.0, 0.0]))
-        for v in np.interp(times, t_given, u_given):
-            series.append(v)
+        table.wind[column, : len(times)] = np.interp(times, t_given, u_given)
+    table.size = len(times)
     for index, event in sorted(enumerate(events), key=lambda pair: pair[1]["time"]):
         if event.get("kind", "impact") == "contact":
             continue
@@ -266,6 +357,7 @@ class WindField:
         stage = getattr(getattr(sim_plan, "forces", None), "wind", None)
         self.fields = stage.fields if stage is not None else _fields(scene, sim_plan)
         self.listener = np.asarray(scene.listener.position, float)
+        self._scratch = None  # (probes, together, points, relative velocities): speeds' scratch (_points)
 
     def velocity(self, points: np.ndarray, t: float) -> np.ndarray:
         return self.fields.velocity(points, t)
@@ -275,28 +367,42 @@ class WindField:
         u = self.fields.velocity(self.listener[None, :], t, self.fields.names.index(name))
         return float(np.linalg.norm(u[0]))
 
-    def speeds(self, probes: "WindProbes", state, t: float) -> np.ndarray:
-        """(len(probes.keys),) the wind speeds the record keeps at time t, in one evaluation of the field for
-        all the points when the scene has one wind (the listener's wind is then the sum at its point):
-        |u(x_i) - v_i| at each body, |u_w(listener)| for each listener wind, 0 for a body not in the run."""
-        out = np.zeros(len(probes.keys))
-        nb = len(probes.body)
-        points = state.x[probes.body]
-        together = len(self.fields.names) == 1 and len(probes.listener_wind)
-        if together:
-            points = np.concatenate([points, self.listener[None, :]])
+    def speeds(self, probes: "WindProbes", state, t: float, out: np.ndarray | None = None) -> np.ndarray:
+        """(len(probes.keys),) the wind speeds the record keeps at time t (into `out` if given), in one
+        evaluation of the field for all the points when the scene has one wind (the listener's wind is then
+        the sum at its point): |u(x_i) - v_i| at each body, |u_w(listener)| for each listener wind, 0 for a
+        body not in the run. Bodies that never move (probes.still) keep their first point, and v = 0."""
+        if out is None:
+            out = np.zeros(len(probes.keys))
+        together = bool(len(self.fields.names) == 1 and len(probes.listener_wind))
+        points, rel = self._points(probes, together, state)
         if len(points):
+            moving, body = probes.moving, probes.moving_body
+            if len(moving):
+                points[moving] = state.x[body]
             u = self.fields.velocity(points, t)
-            # |u - v| at the bodies
-            rel = u[:nb] - state.v[probes.body]
-            out[probes.body_slot] = np.sqrt(np.einsum("ij,ij->i", rel, rel))
-            if together:
-                out[probes.listener_slot] = np.sqrt(u[nb] @ u[nb])
+            if len(moving):
+                # |u - v| at the moving bodies (u itself elsewhere: v = 0 at a body that never moves)
+                rel[...] = u
+                rel[moving] = u[moving] - state.v[body]
+                u = rel
+            out[probes.point_slot if together else probes.body_slot] = np.sqrt(np.einsum("ij,ij->i", u, u))
         if not together:
             for slot, name in zip(probes.listener_slot, probes.listener_wind):
                 out[slot] = self.listener_speed(name, t)
         return out
 
+    def _points(self, probes: "WindProbes", together: bool, state) -> tuple:
+        """Scratch (p,3) twice, for these probes: the points (the bodies' centres, then with `together` the
+        listener's point; those that never move filled once) and the air's velocities relative to them."""
+        if self._scratch is None or self._scratch[0] is not probes or self._scratch[1] != together:
+            points = np.zeros((len(probes.body) + int(together), 3))
+            still = np.setdiff1d(np.arange(len(probes.body)), probes.moving)
+            points[still] = state.x[probes.body[still]]
+            if together:
+                points[-1] = self.listener
+            self._scratch = (probes, together, points, np.zeros_like(points))
+        return self._scratch[2], self._scratch[3]
 
 @dataclass
 class WindProbes:
@@ -309,14 +415,22 @@ class WindProbes:
     body_slot: np.ndarray  # (b,) int
     listener_wind: list  # (l,) names
     listener_slot: list  # (l,) int
+    point_slot: np.ndarray  # (b + 1,) int: body_slot, then the (first) listener wind's slot
+    moving: np.ndarray  # (m,) int: which of `body` move (the others stay where they start, at rest)
+    moving_body: np.ndarray  # (m,) int: body[moving]
 
     @classmethod
-    def of(cls, wind: dict, index: dict) -> "WindProbes":
+    def of(cls, wind: dict, index: dict, still: np.ndarray | None = None) -> "WindProbes":
+        """still (n,) bool, optional: bodies that never move (without it, every body may)."""
         keys = list(wind)
         bodies = [(slot, index[key]) for slot, key in enumerate(keys) if not isinstance(key, tuple) and key in index]
         listeners = [(slot, key[1]) for slot, key in enumerate(keys) if isinstance(key, tuple)]
-        return cls(keys, np.array([i for _, i in bodies], dtype=np.int64), np.array([s for s, _ in bodies], np.int64),
-                   [name for _, name in listeners], [s for s, _ in listeners])
+        body = np.array([i for _, i in bodies], dtype=np.int64)
+        body_slot = np.array([s for s, _ in bodies], np.int64)
+        moving = np.flatnonzero(~still[body]) if still is not None else np.arange(len(body))
+        return cls(keys, body, body_slot, [name for _, name in listeners], [s for s, _ in listeners],
+                   np.concatenate([body_slot, np.array([s for s, _ in listeners[:1]], np.int64)]), moving,
+                   body[moving])
 
 
 def _fields(scene, sim_plan):

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .iir import PoleFilter, one_pole
+from .impact import Banks
 from .nodes import Node
 from .noise import fractal_profile, read_periodic
 
@@ -99,7 +100,7 @@ class Scrape(Node):
 
     def __init__(self, pair: tuple, banks: list, profile: SurfaceProfile, max_speed: float, rolling: bool,
                  roughness: float, fs: float):
-        self.pair, self.banks, self.profile = pair, banks, profile
+        self.pair, self.banks, self.profile = pair, Banks(banks, fs), profile
         self.max_speed, self.rolling = max_speed, rolling
         self.scale = roughness / REFERENCE_ROUGHNESS
         self.travel = 0.0  # m along the profile
@@ -116,9 +117,6 @@ class Scrape(Node):
         self.travel = float(travel[-1]) % (len(self.profile.slope) * self.profile.dx)
         # f = N (v / v_max) s(x) (roughness / 10 um)
         drive = force * (speed / self.max_speed) * self.profile.read(travel) * self.scale
-        out = DIRECT_LEVEL * drive
-        for bank in self.banks:
-            gains = bank.modes.excitation(contact["local"].get(bank.body))
-            out = out + bank.render(ctx.n, [(gains, 0, drive)])
-        return out
+        gains = sum(self.banks.gains(body, contact["local"].get(body)) for body in self.banks.bodies)
+        return DIRECT_LEVEL * drive + self.banks.render(ctx.start, ctx.n, [(gains, 0, drive)])
 

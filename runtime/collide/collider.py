@@ -75,6 +75,7 @@ class Collider:
         self.gravity = float(np.linalg.norm(self.plan.gravity))  # |g|, m/s2
         self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * self.plan.step)
         self.stats = {"impacts located": 0, "tunnelling caught": 0}
+        self.first_slope = FirstSlope(n, reuse=self.plan.kinematics is None)
 
     # -- the hooks of the step loop -------------------------------------------------------------------------
 
@@ -83,12 +84,16 @@ class Collider:
         for buffer, array in zip(self.saved, (s.x, s.q, s.v, s.w)):
             buffer[...] = array
         self.t_saved = s.t
+        self.first_slope.forget()
 
     def after_step(self, h: float, epoch) -> None:
         s = self.sim.state
         t_end = s.t
         self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * h)
         scan = self.scan()
+        if scan is NOTHING_NEAR:  # no pair: no contact, no impact, nothing to resolve (most steps)
+            self.log.flush(t_end)
+            return
         for _ in range(MAX_TOI_PER_STEP):
             hit = self._earliest_hit(scan, t_end - self.t_saved)
             if hit is None:
@@ -110,7 +115,7 @@ class Collider:
         When no dynamic body's swept box comes near anything (most steps), nothing more is computed."""
         s = self.sim.state
         if not self.broad.anything_near(s.x, self._rotations, self.saved[0]):
-            return Scan(None, NO_PAIRS, None, None)
+            return NOTHING_NEAR
         R, R0 = quat_to_matrix(s.q), quat_to_matrix(self.saved[1])
         pairs = self.broad.pairs((s.x, R), (self.saved[0], R0))
         return Scan(self.contacts(pairs, s.x, R, self.cp.margin), pairs, R, R0)
@@ -237,6 +242,7 @@ class Collider:
         for array, buffer in zip((s.x, s.q, s.v, s.w), self.saved):
             array[...] = buffer
         s.t = self.t_saved
+        self.first_slope.expect()
         self._advance(tau, epoch)
         s.t = self.t_saved + tau
         return self.distance(pair[0], pair[1], s.x, quat_to_matrix(s.q))
@@ -252,8 +258,16 @@ class Collider:
 
     def _integrate(self, tau: float, epoch) -> None:
         s = self.sim.state
-        INTEGRATORS[self.plan.integrator](self.sim.dynamics.accelerations, s.t, tau, (s.x, s.q, s.v, s.w),
-                                          self.stages, epoch)
+        INTEGRATORS[self.plan.integrator](self._accelerations, s.t, tau, (s.x, s.q, s.v, s.w), self.stages, epoch)
+
+    def _accelerations(self, t, x, q, v, w, a, alpha, epoch) -> None:
+        """The dynamics' accelerations (the integrator's slopes). Every trial of the time-of-impact search
+        starts from the saved start of the step, so its first slope is the same each time: the dynamics
+        compute it for the first trial, the later ones copy it (FirstSlope)."""
+        if self.first_slope.copy_into(t, a, alpha):
+            return
+        self.sim.dynamics.accelerations(t, x, q, v, w, a, alpha, epoch)
+        self.first_slope.keep(t, a, alpha)
 
     # -- response ---------------------------------------------------------------------------------------------
 
@@ -323,6 +337,45 @@ class Collider:
         return interpolated
 
 
+class FirstSlope:
+    """The accelerations at the saved start of the step (scratch of the time-of-impact search).
+
+    A trial integrates from the saved state at the saved time (_distance_at), and the accelerations are a
+    function of (t, x, q, v, w, epoch) alone: the first slope of every trial of one step is the same, bit for
+    bit, and the first trial's is kept for the others. Not with kinematic bodies: the dynamics also put them on
+    their paths at t, which the saved state may hold one rounding apart (a step ending on a frame has its time
+    set to the frame's)."""
+
+    def __init__(self, n: int, reuse: bool):
+        self.reuse = reuse
+        self.a, self.alpha = np.zeros((n, 3)), np.zeros((n, 3))
+        self.t = math.nan  # the time of a, alpha
+        self.known = False  # a, alpha hold the slope at the saved start
+        self.expected = False  # the next call of the dynamics is a trial's first, at the saved start
+
+    def forget(self) -> None:
+        """A new start of the step was saved."""
+        self.known = self.expected = False
+
+    def expect(self) -> None:
+        """A trial is about to integrate from the saved start."""
+        self.expected = self.reuse
+
+    def copy_into(self, t: float, a, alpha) -> bool:
+        """If this is a trial's first call (at time t) and its slope is known, a, alpha <- it and True."""
+        if not (self.expected and self.known and t == self.t):
+            return False
+        a[...], alpha[...] = self.a, self.alpha
+        self.expected = False
+        return True
+
+    def keep(self, t: float, a, alpha) -> None:
+        """After the dynamics computed a slope at time t: keep it if it was a trial's first."""
+        if self.expected:
+            self.a[...], self.alpha[...], self.t = a, alpha, t
+            self.known, self.expected = True, False
+
+
 @dataclass
 class Scan:
     """Contacts (or None) and candidate pairs (k,2) at the live state, and the rotation matrices of the live
@@ -336,13 +389,17 @@ class Scan:
 
 
 NO_PAIRS = np.zeros((0, 2), np.int64)
+# the scan of a step where the broad phase's early-out finds nothing near (one object for every such step)
+NOTHING_NEAR = Scan(None, NO_PAIRS, None, None)
 
 
 def _never_moving(plan) -> np.ndarray:
-    """(n,) bool: static bodies (neither dynamic nor on a kinematic path): their boxes never change."""
+    """(n,) bool: static bodies (neither dynamic nor on a kinematic path) that start at rest: their boxes never
+    change. (A static body given a velocity drifts with it: it moves.)"""
     still = ~np.asarray(plan.dynamic, bool)
     if plan.kinematics is not None:
         still[np.asarray(plan.kinematics.index, int)] = False
+    still &= ~np.any(plan.v0 != 0, axis=1) & ~np.any(plan.w0 != 0, axis=1)
     return still
 
 

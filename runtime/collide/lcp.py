@@ -22,16 +22,33 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 
 # PGS stops when no row changes the velocities by more than this fraction of the largest velocity change asked
 # for, max |target - u0| (a sliding block's friction is then right to 1e-8 of itself)
 PGS_TOLERANCE = 1e-8
 # PGS gives up after this many sweeps (the last iterate is used)
 PGS_SWEEPS = 300
+# PGS keeps its velocities in Python lists up to this many rows (numpy arrays beyond)
+PGS_LISTS_UP_TO = 24
 # passes of the active-set correction before PGS takes over
 ACTIVE_SET_PASSES = 6
 # diagonal shift of the direct solve, relative to the largest diagonal entry of W
 REGULARIZATION = 1e-10
+
+_POTRF, _POTRS = scipy.linalg.lapack.dpotrf, scipy.linalg.lapack.dpotrs
+
+
+def cholesky(A):
+    """The lower Cholesky factor of A (m,m), or None when A is not positive definite: LAPACK potrf directly,
+    what scipy's cho_factor calls, without its per-call checks and wrappers (the same numbers)."""
+    factor, info = _POTRF(A, lower=1, clean=0)
+    return factor if info == 0 else None
+
+
+def cholesky_solve(factor, b):
+    """A^-1 b (m,) or (m,k) from the factor of `cholesky`: LAPACK potrs (scipy's cho_solve)."""
+    return _POTRS(factor, b, lower=1)[0]
 
 
 def solve(W, u0, target, mu, tangent) -> np.ndarray:
@@ -135,13 +152,11 @@ def _direct(W, rhs):
     scale = float(np.max(np.diag(W), initial=0.0))
     if scale <= 0:
         return None
-    try:
-        factor = scipy.linalg.cho_factor(W + REGULARIZATION * scale * np.eye(len(W)), lower=True,
-                                         check_finite=False)
-    except (np.linalg.LinAlgError, ValueError):
+    factor = cholesky(W + REGULARIZATION * scale * np.eye(len(W)))
+    if factor is None:
         return None
-    lam = scipy.linalg.cho_solve(factor, rhs, check_finite=False)
-    return lam + scipy.linalg.cho_solve(factor, rhs - W @ lam, check_finite=False)
+    lam = cholesky_solve(factor, rhs)
+    return lam + cholesky_solve(factor, rhs - W @ lam)
 
 
 def _feasible(W, u0, target, mu, tangent, lam, tol, pressing, sliding=None) -> bool:
@@ -178,11 +193,17 @@ def _project(lam, mu, tangent):
 
 
 def _pgs(W, u0, target, mu, tangent, lam, tol):
+    """Projected Gauss-Seidel sweeps from lam. u = u0 + W lam is kept up to date row by row: in Python lists
+    for a few rows (a numpy call per update costs more than the update), else in numpy; the same sums in the
+    same order either way (u_i + W_ji d, or u_i + (W_ji d1 + W_j+1,i d2)), so the same numbers."""
     k = len(mu)
     u = u0 + W @ lam
     diag = np.diag(W).copy()
     diag[diag <= 0] = np.inf  # a row no body can move: its impulse does nothing
-    lam_l, u_l, target_l, diag_l = lam.tolist(), u, target.tolist(), diag.tolist()
+    lists = len(u0) <= PGS_LISTS_UP_TO
+    W_rows, u_l = (W.tolist(), u.tolist()) if lists else (W, u)
+    shift = _shift_list if lists else _shift_array
+    lam_l, target_l, diag_l = lam.tolist(), target.tolist(), diag.tolist()
     mu_l, tangent_l = mu.tolist(), tangent.tolist()
     for _ in range(PGS_SWEEPS):
         change = 0.0
@@ -192,7 +213,7 @@ def _pgs(W, u0, target, mu, tangent, lam, tol):
             new = max(0.0, old + (target_l[c] - u_l[c]) / diag_l[c])
             if new != old:
                 lam_l[c] = new
-                u_l += W[c] * (new - old)
+                shift(u_l, W_rows[c], new - old)
                 change = max(change, abs(new - old) * diag_l[c])
             j = tangent_l[c]
             if j < 0:
@@ -206,8 +227,24 @@ def _pgs(W, u0, target, mu, tangent, lam, tol):
                 l1, l2 = l1 * s, l2 * s
             if l1 != o1 or l2 != o2:
                 lam_l[j], lam_l[j + 1] = l1, l2
-                u_l += W[j] * (l1 - o1) + W[j + 1] * (l2 - o2)
+                shift(u_l, W_rows[j], l1 - o1, W_rows[j + 1], l2 - o2)
                 change = max(change, abs(l1 - o1) * diag_l[j], abs(l2 - o2) * diag_l[j + 1])
         if change < tol:
             break
     return np.array(lam_l)
+
+
+def _shift_array(u, row, d, row2=None, d2=0.0) -> None:
+    """u += row d (+ row2 d2), u and the rows numpy arrays."""
+    if row2 is None:
+        u += row * d
+    else:
+        u += row * d + row2 * d2
+
+
+def _shift_list(u, row, d, row2=None, d2=0.0) -> None:
+    """u += row d (+ row2 d2), u and the rows Python lists (the same operations as _shift_array)."""
+    if row2 is None:
+        u[:] = [a + b * d for a, b in zip(u, row)]
+    else:
+        u[:] = [a + (b * d + c * d2) for a, b, c in zip(u, row, row2)]

@@ -98,12 +98,22 @@ def _reach(table, index: np.ndarray) -> np.ndarray:
     return radius * (1.0 + _SAFE) + _SAFE
 
 
+def _rows(index: np.ndarray):
+    """index as a slice when it is consecutive (x[slice] is a view, x[index] a copy), else index itself."""
+    if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
+        return slice(int(index[0]), int(index[0]) + len(index))
+    return index
+
+
 class BroadPhase:
     """Candidate pairs of a fixed set of bodies; `pairs` returns (k,2) body indices, a before b.
 
-    still (n,) bool, optional: bodies that never move (static, not kinematic). With it, `anything_near` can
+    still (n,) bool, optional: bodies that never move (static, not kinematic, at rest). With it, `anything_near` can
     tell cheaply that no pair can touch (most steps of most scenes), before the full broad phase: it bounds
-    each dynamic body by a cube about its centre (no rotation needed) and keeps the boxes of the still bodies."""
+    each dynamic body by a cube about its centre (no rotation needed) and keeps the boxes of the still bodies.
+    And when nothing but dynamic bodies moves (no kinematic body, every plane still), each time it finds
+    nothing near it also works out how far the dynamic bodies may move before that answer could change (the
+    `room`): until one leaves it, a step costs a few array operations (`_within_room`)."""
 
     def __init__(self, table, collidable: np.ndarray, dynamic: np.ndarray, excluded: np.ndarray, margin: float,
                  still: np.ndarray | None = None):
@@ -111,6 +121,7 @@ class BroadPhase:
         self.n = len(dynamic)
         kinds = table.kind[collidable]
         self.boxed = collidable[kinds != PLANE]  # bodies with a finite box
+        self.boxed_twice = np.concatenate([self.boxed, self.boxed])
         self.planes = collidable[kinds == PLANE]
         self.quick = still is not None
         if self.quick:
@@ -120,27 +131,106 @@ class BroadPhase:
             self.still = self.boxed[~dynamic[self.boxed] & still[self.boxed]]
             self.driven = self.boxed[~dynamic[self.boxed] & ~still[self.boxed]]
             self.reach = _reach(table, self.active) + margin  # (a,) half-edge of a cube about x that holds the box
+            self.largest_reach = float(self.reach.max(initial=0.0))
             self.still_boxes = None  # (lo, hi) of `still`, from the first poses seen, grown by _SAFE
+            self.still_scale = 1.0  # 1 + their largest coordinate
+            # the room (state of the early-out): only when everything but the dynamic bodies stands still
+            self.roomy = len(self.active) > 0 and not len(self.driven) and bool(np.all(still[self.planes]))
+            self.rows = _rows(self.active)  # x[rows] is x[active] (a slice when they are consecutive)
+            self.anchor = np.zeros((len(self.active), 3))  # (a,3) where the room was measured from
+            self.room = -np.inf  # L-inf distance every dynamic body may move from its anchor, m
+            self.was_near = False  # the last full test found something near
+            moved = np.zeros((2, len(self.active), 3))  # scratch: |x - anchor| at the end and start of the step
+            self.moved = (moved, moved[0], moved[1])
 
     def anything_near(self, x, R_of, x_before) -> bool:
         """False when `pairs` would find nothing: no cube bounding a dynamic body's box, swept from x_before
         to x, overlaps the box of another body or reaches a plane. The cubes hold the boxes, so this never
         says False where `pairs` would find a pair. R_of(index) -> (R now, R before) of those bodies (k,3,3)
-        each, asked only for kinematic bodies and planes. Without `still`, always True."""
+        each, asked only for kinematic bodies and planes. Without `still`, always True.
+
+        With a room (`roomy`): both ends of the step inside the room, nothing is near (`_within_room`). Else the
+        room is measured again about the end of the step, and checked again; else the full test runs. The room
+        stays true of its anchor whatever happens later, so it is only measured anew when the bodies leave it,
+        and not while they stay near something (bodies lying on one another would measure no room every step)."""
         if not self.quick:
             return True
         if not len(self.active):
             return False
+        if self.roomy:
+            if self._within_room(x, x_before):
+                return False
+            if not self.was_near:
+                self._measure_room(x, R_of)
+                if self._within_room(x, x_before):
+                    return False
+        near = self._cubes_near(x, R_of, x_before)
+        self.was_near = near
+        return near
+
+    def _within_room(self, x, x_before) -> bool:
+        """Every dynamic body, at both ends of the step, within the room of its anchor (L-inf), strictly.
+
+        Why that is enough (`_measure_room` gives the room): the cube about a body at p, |p - anchor| < room,
+        has half-edge reach, so it lies inside the cube of half-edge reach + room about the anchor; the box
+        swept between the two ends (what `_cubes_near` tests) is the box of two such cubes, inside it too. That
+        bigger cube is apart from every still box, from every other dynamic body's bigger cube and from every
+        plane (by construction of the room), so `_cubes_near` would find nothing: the same answer, and the
+        same step, as before. Only end positions enter `_cubes_near` and `pairs` (the swept box is the union of
+        the two ends' boxes), so the path between them does not matter here either."""
+        moved, end, start = self.moved
+        # |x - anchor| and |x_before - anchor|, per axis, against the smallest room
+        np.subtract(x[self.rows], self.anchor, out=end)
+        np.subtract(x_before[self.rows], self.anchor, out=start)
+        return bool(np.abs(moved, out=moved).max() < self.room)
+
+    def _measure_room(self, x, R_of) -> None:
+        """Anchor at the dynamic bodies' centres now, p = x[active], and set the room: the smallest over the
+        dynamic bodies of room_a, the L-inf distance body a may move from p_a with `_cubes_near` still finding
+        nothing, less a rounding allowance:
+
+          a still box S:        the cube of half-edge reach_a + room_a about p must miss S: on some axis k
+                                the gap max(S.lo_k - p_k, p_k - S.hi_k) exceeds reach_a + room_a
+          another dynamic b:    both bigger cubes apart on some axis: |p_a,k - p_b,k| - reach_a - reach_b
+                                exceeds room_a + room_b; each body gets half
+          a plane (n, point o): the bigger cube's lowest point along n, (p - o) . n - (reach_a + room_a) |n|_1,
+                                above _near_a_plane's threshold margin + _SAFE (1 + |centre|_inf); with every
+                                room at most 1 + P (P = max |p|_inf), |centre| <= 1 + 2 P, so
+                                room_a = ((p - o) . n - reach_a |n|_1 - margin - 2 _SAFE (1 + P)) / |n|_1
+        The rounding allowance, _SAFE (1 + the largest coordinate involved), is ~1e7 times the rounding error
+        of these few operations, so rounding cannot turn the argument of `_within_room` around."""
+        p = x[self.rows]
+        reach = self.reach
+        P = 1.0 + float(np.abs(p).max())
+        room = np.full(len(p), P)
+        scale = max(P, self.still_scale)
+        if len(self.still):
+            lo, hi = self._kept_boxes(x, R_of)
+            gap = np.maximum(lo - p[:, None], p[:, None] - hi).max(axis=2)  # (a,s)
+            room = np.minimum(room, gap.min(axis=1) - reach)
+        if len(p) > 1:
+            apart = np.abs(p[:, None] - p[None]).max(axis=2) - reach[:, None] - reach[None]  # (a,a)
+            np.fill_diagonal(apart, np.inf)
+            room = np.minimum(room, 0.5 * apart.min(axis=1))
+        for plane, R in zip(self.planes, R_of(self.planes)[0] if len(self.planes) else ()):
+            n = R @ self.table.normal[plane]
+            spread = float(np.abs(n).sum())  # |n|_1
+            height = (p - x[plane]) @ n - reach * spread - self.margin - 2.0 * _SAFE * P
+            room = np.minimum(room, height / spread)
+            scale = max(scale, 1.0 + float(np.abs(x[plane]).max()))
+        self.anchor[...] = p
+        self.room = float(room.min()) - _SAFE * (scale + self.largest_reach)
+
+    def _cubes_near(self, x, R_of, x_before) -> bool:
+        """anything_near's test itself, every time."""
         xa, xb = x[self.active], x_before[self.active]
         lo = np.minimum(xa, xb) - self.reach[:, None]
         hi = np.maximum(xa, xb) + self.reach[:, None]
         others_lo, others_hi = [lo], [hi]
         if len(self.still):
-            if self.still_boxes is None:
-                lo_s, hi_s = boxes_of(self.table, self.still, x[self.still], R_of(self.still)[0], self.margin)
-                self.still_boxes = (lo_s - _SAFE * (1.0 + np.abs(lo_s)), hi_s + _SAFE * (1.0 + np.abs(hi_s)))
-            others_lo.append(self.still_boxes[0])
-            others_hi.append(self.still_boxes[1])
+            lo_s, hi_s = self._kept_boxes(x, R_of)
+            others_lo.append(lo_s)
+            others_hi.append(hi_s)
         if len(self.driven):
             R_now, R_before = R_of(self.driven)
             lo_d, hi_d = boxes_of(self.table, self.driven, x[self.driven], R_now, self.margin)
@@ -156,6 +246,14 @@ class BroadPhase:
             return True
         return bool(len(self.planes)) and self._near_a_plane(lo, hi, x, R_of(self.planes)[0])
 
+    def _kept_boxes(self, x, R_of) -> tuple:
+        """(lo, hi) of the still bodies, from the first poses seen (they never move), grown by _SAFE."""
+        if self.still_boxes is None:
+            lo, hi = boxes_of(self.table, self.still, x[self.still], R_of(self.still)[0], self.margin)
+            self.still_boxes = (lo - _SAFE * (1.0 + np.abs(lo)), hi + _SAFE * (1.0 + np.abs(hi)))
+            self.still_scale = 1.0 + max(float(np.abs(box).max()) for box in self.still_boxes)
+        return self.still_boxes
+
     def _near_a_plane(self, lo, hi, x, R_planes) -> bool:
         centre, extent = 0.5 * (lo + hi), 0.5 * (hi - lo)
         for plane, R in zip(self.planes, R_planes):
@@ -169,10 +267,10 @@ class BroadPhase:
     def pairs(self, poses_now, poses_before=None) -> np.ndarray:
         """Pairs whose boxes overlap at poses_now = (x, R), or, with poses_before, anywhere on the way (each
         box is the union of its boxes at both poses: a swept box)."""
-        lo, hi = bounding_boxes(self.table, self.boxed, *poses_now, self.margin)
-        if poses_before is not None:
-            lo0, hi0 = bounding_boxes(self.table, self.boxed, *poses_before, self.margin)
-            lo, hi = np.minimum(lo, lo0), np.maximum(hi, hi0)
+        if poses_before is None:
+            lo, hi = bounding_boxes(self.table, self.boxed, *poses_now, self.margin)
+        else:
+            lo, hi = self._swept_boxes(poses_now, poses_before)
         found = [self._grid(lo, hi), self._planes(lo, hi, *poses_now)]
         pairs = np.concatenate(found)
         if not len(pairs):
@@ -183,6 +281,14 @@ class BroadPhase:
         keep = moving & ~is_excluded(keys, self.excluded)
         pairs = pairs[keep]
         return pairs[np.argsort(keys[keep], kind="stable")]  # a deterministic order
+
+    def _swept_boxes(self, poses_now, poses_before) -> tuple:
+        """The union of each boxed body's boxes at both poses; both sets of boxes in one call of boxes_of."""
+        (x, R), (x0, R0) = poses_now, poses_before
+        k, b = len(self.boxed), self.boxed
+        lo, hi = boxes_of(self.table, self.boxed_twice, np.concatenate([x[b], x0[b]]), np.concatenate([R[b], R0[b]]),
+                          self.margin)
+        return np.minimum(lo[:k], lo[k:]), np.maximum(hi[:k], hi[k:])
 
     def _grid(self, lo, hi) -> np.ndarray:
         """Pairs of boxes that overlap, through a uniform grid: cell size GRID_CELL x the GRID_QUANTILE box

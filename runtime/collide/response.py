@@ -35,7 +35,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from .. import linsolve
 from ..rotation import quat_integrate
@@ -336,12 +335,9 @@ def schur(Jj, rbj, Jc, rbc, bodies: Bodies, r_j, uc):
 def _joint_solve(A, B):
     scale = float(np.max(np.diag(A), initial=0.0))
     if scale > 0:
-        try:
-            c = scipy.linalg.cho_factor(A, lower=True, check_finite=False)
-            if float(np.min(np.diag(c[0]))) ** 2 > linsolve.RANK_RTOL * scale:
-                return scipy.linalg.cho_solve(c, B, check_finite=False)
-        except (np.linalg.LinAlgError, ValueError):
-            pass
+        factor = lcp.cholesky(A)
+        if factor is not None and float(np.min(np.diag(factor))) ** 2 > linsolve.RANK_RTOL * scale:
+            return lcp.cholesky_solve(factor, B)
     w, V = np.linalg.eigh(A)
     keep = w > linsolve.RANK_RTOL * max(scale, 1e-300)
     return V[:, keep] @ ((V[:, keep].T @ B) / w[keep, None])

@@ -45,7 +45,8 @@ class RowBlock:
 
     C (m,) position error; row_bodies (m,2) body indices; J (m,2,6) Jacobian blocks [linear(3), angular(3)]
     per slot; ct (m,) explicit time derivative of C; bias (m,) Jdot v + explicit d2C/dt2;
-    velocity_only (m,) rows that have no position-level C.
+    velocity_only (m,) rows that have no position-level C. values (3,m): C, ct and bias are its rows, so that
+    a solver reads all three of a row range at once.
     """
 
     C: np.ndarray
@@ -54,16 +55,19 @@ class RowBlock:
     ct: np.ndarray
     bias: np.ndarray
     velocity_only: np.ndarray
+    values: np.ndarray | None = None
 
     @classmethod
     def empty(cls, m: int) -> "RowBlock":
+        values = np.zeros((3, m))
         return cls(
-            C=np.zeros(m),
+            C=values[0],
             row_bodies=np.full((m, 2), WORLD, dtype=np.int64),
             J=np.zeros((m, 2, 6)),
-            ct=np.zeros(m),
-            bias=np.zeros(m),
+            ct=values[1],
+            bias=values[2],
             velocity_only=np.zeros(m, dtype=bool),
+            values=values,
         )
 
 

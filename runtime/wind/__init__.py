@@ -18,6 +18,7 @@ For the audio graph: `wind_speed_at(plan.forces.wind, points, t)`, `WindPlan.air
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +54,11 @@ class WindPlan:
         self.rows = slice(int(i[0]), int(i[0]) + len(i)) if consecutive else i
         self.model = model
         self.step = step  # s: the procedural model's h (set_step keeps it exact)
+        # one body in the wind, force model, no torque: its row, and its 1/2 rho Cd A (the float path of apply)
+        plain = len(i) == 1 and model == "force" and not (self.constants.shaped or self.constants.turning)
+        self.one_plain_body = int(i[0]) if plain else None
+        self.one_plain_row = slice(int(i[0]), int(i[0]) + 1) if plain else None
+        self.one_force_scale = float(self.constants.force_scale[0]) if plain else 0.0
         self.relative_speed = np.zeros(n)  # (n,) |u - v| at each body, last apply (0 for bodies out of the wind)
         self.last_air_velocity = np.zeros((n, 3))  # (n,3) u at each body, last apply (0 for bodies out of the wind)
 
@@ -69,9 +75,13 @@ class WindPlan:
     def apply(self, x, v, w, R, t, force_out, torque_out) -> None:
         """force_out, torque_out (n,3) += the drag on every body in the wind at time t (force model), or the
         forces on those bodies scaled by the step's relaxation factors (procedural model)."""
+        if self.one_plain_body is not None:
+            self._apply_to_one_plain_body(x, v, t, force_out)
+            return
         b = self.bodies
         i = b.body
-        Ri, wi = R[i], w[i]
+        # the body's frame and spin matter only when the wind can turn it, or to the procedural model
+        Ri, wi = (R[i], w[i]) if self.constants.turning or self.model == "procedural" else (None, None)
         u = self.fields.velocity(x[i], t)
         result = drag_on(b, self.air_density, u, v[i], wi, Ri, self.constants)
         out = self.rows
@@ -79,12 +89,30 @@ class WindPlan:
         self.relative_speed[out] = result.speed
         if self.model == "force":
             force_out[out] += result.force
-            torque_out[out] += result.torque
+            if self.constants.turning:
+                torque_out[out] += result.torque
             return
         w_body = np.einsum("kji,kj->ki", Ri, wi)
         phi, phi_w = relaxation_factors(b, self.air_density, result, w_body, self.step)
         force_out[out] = phi[:, None] * (force_out[out] + result.force)
         torque_out[out] = phi_w[:, None] * (torque_out[out] + result.torque)
+
+    def _apply_to_one_plain_body(self, x, v, t, force_out) -> None:
+        """The force model when one body feels the wind and the wind cannot turn it (a sphere, or a body given
+        an `area`): drag()'s arithmetic on floats, term for term, so the same force to the bit."""
+        j = self.one_plain_body
+        u0, u1, u2 = u = self.fields.velocity_at_one_point(x[self.one_plain_row], t)
+        v0, v1, v2 = v[j].tolist()
+        # u_rel = u - v
+        r0, r1, r2 = u0 - v0, u1 - v1, u2 - v2
+        # |u_rel| (its terms added in np.einsum's order, as drag() adds them)
+        speed = math.sqrt(r0 * r0 + r2 * r2 + r1 * r1)
+        # F = 1/2 rho Cd A |u_rel| u_rel, A = area0
+        scale = self.one_force_scale * speed
+        f0, f1, f2 = force_out[j].tolist()
+        force_out[j] = (f0 + scale * r0, f1 + scale * r1, f2 + scale * r2)
+        self.last_air_velocity[j] = u
+        self.relative_speed[j] = speed
 
     def describe(self) -> str:
         kinds = ", ".join(f"{name} ({'source' if s else 'uniform'})" for name, s in zip(self.fields.names,

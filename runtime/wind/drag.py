@@ -150,6 +150,7 @@ class DragConstants:
     same order, as the formulas below write them, so the forces are the same to the last bit."""
 
     half_rho_cd: np.ndarray  # (k,) 1/2 rho Cd
+    force_scale: np.ndarray  # (k,) 1/2 rho Cd area0: F = force_scale |u_rel| u_rel when A = area0
     rho_cd: np.ndarray  # (k,) rho Cd
     spin_drag: np.ndarray  # (k,3) 1/2 rho Cd K
     arm: np.ndarray  # (k,3) -CP_SHIFT H: r_cp = arm * n
@@ -158,8 +159,9 @@ class DragConstants:
 
 
 def drag_constants(b: DragBodies, rho: float) -> DragConstants:
-    return DragConstants(0.5 * rho * b.cd, rho * b.cd, 0.5 * rho * b.cd[:, None] * b.spin, -CP_SHIFT * b.half,
-                         b.shaped, b.turning)
+    half_rho_cd = 0.5 * rho * b.cd
+    return DragConstants(half_rho_cd, half_rho_cd * b.area0, rho * b.cd, 0.5 * rho * b.cd[:, None] * b.spin,
+                         -CP_SHIFT * b.half, b.shaped, b.turning)
 
 
 def _norm(a: np.ndarray) -> np.ndarray:
@@ -193,14 +195,15 @@ class DragResult:
 
 def drag(b: DragBodies, rho: float, u: np.ndarray, v: np.ndarray, w: np.ndarray, R: np.ndarray,
          constants: DragConstants | None = None) -> DragResult:
-    """Drag on the k bodies: u (k,3) the air velocity at each; v, w (k,3) and R (k,3,3) the bodies' own.
-    constants: drag_constants(b, rho), when the caller keeps them."""
+    """Drag on the k bodies: u (k,3) the air velocity at each; v, w (k,3) and R (k,3,3) the bodies' own (w and R
+    unused, and may be None, when the wind cannot turn the bodies). constants: drag_constants(b, rho), when the
+    caller keeps them."""
     c = constants if constants is not None else drag_constants(b, rho)
     rel = u - v
     speed = _norm(rel)
     if not (c.shaped or c.turning):
         # A = area0 (area0 + face . |n| + side sqrt(1 - n_z^2) with face = side = 0), and no torque
-        force = (c.half_rho_cd * b.area0 * speed)[:, None] * rel
+        force = (c.force_scale * speed)[:, None] * rel
         zero = np.zeros_like(force)
         return DragResult(force, zero, speed, b.area0.copy(), zero)
     n_body = np.einsum("kji,kj->ki", R, rel) / np.maximum(speed, TINY_SPEED)[:, None]

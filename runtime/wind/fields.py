@@ -13,6 +13,7 @@ still. s(t) is the wind's `speed` expression, which may call envelope(...), mic(
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,6 +49,12 @@ class WindFields:
 
     def __post_init__(self):
         self.speed_of_time = [SpeedOfTime(s, f) for s, f in zip(self.speed, self.functions)]
+        # the same numbers as Python floats and ranges, for the per-call path (no numpy scalar per use)
+        self._every_wind = range(len(self.names))
+        self._blows_from_a_point = [bool(b) for b in self.is_source]
+        self._direction_floats = [tuple(map(float, d)) for d in self.direction]
+        self._turbulence_floats = [float(i) for i in self.turbulence]
+        self._rows: dict = {}  # k -> scratch of _rows_for
 
     def speeds(self, t: float) -> np.ndarray:
         """(m,) s(t) of every wind."""
@@ -58,28 +65,88 @@ class WindFields:
         return self.speed_of_time[w](t)
 
     def velocity(self, x: np.ndarray, t: float, only: int | None = None) -> np.ndarray:
-        """(k,3) air velocity at points x (k,3): the sum of the winds (or wind `only`)."""
+        """(k,3) air velocity at points x (k,3): the sum of the winds (or wind `only`). A new array."""
         x = np.asarray(x, dtype=float).reshape(-1, 3)
+        if len(x) == 1:
+            return np.array([self.velocity_at_one_point(x, t, only)])
         total = None
-        for w in (range(len(self.names)) if only is None else (only,)):
+        for w in (self._every_wind if only is None else (only,)):
             s = self.speed_of_time[w](t)
             if s == 0.0:
                 continue
-            u = self._mean(w, x, s)
-            if self.gusts[w] is not None:
-                # u' = I |u| G(x, t)
-                u += self.turbulence[w] * np.sqrt(np.einsum("ij,ij->i", u, u))[:, None] * self.gusts[w](x, t)
+            u = self._source(w, x, s, t) if self._blows_from_a_point[w] else self._uniform(w, x, s, t)
             # (the first wind is the total itself: 0 + u is u)
             total = u if total is None else total + u
         return np.zeros_like(x) if total is None else total
 
-    def _mean(self, w: int, x: np.ndarray, s: float) -> np.ndarray:
+    def velocity_at_one_point(self, x: np.ndarray, t: float, only: int | None = None) -> tuple:
+        """The air velocity at one point x (1,3), as three floats: velocity()'s sums, taken on floats."""
+        total = None
+        for w in (self._every_wind if only is None else (only,)):
+            s = self.speed_of_time[w](t)
+            if s == 0.0:
+                continue
+            if self._blows_from_a_point[w]:
+                u = tuple(self._source(w, x, s, t)[0].tolist())
+            else:
+                u = self._uniform_at_one_point(w, x, s, t)
+            total = u if total is None else (total[0] + u[0], total[1] + u[1], total[2] + u[2])
+        return (0.0, 0.0, 0.0) if total is None else total
+
+    def _uniform(self, w: int, x: np.ndarray, s: float, t: float) -> np.ndarray:
+        """u = s d + I |s d| G(x, t) at points x (k,3)."""
+        direction_rows, mean = self._rows_for(len(x))
+        # u = s d at every point
+        if self.gusts[w] is None:
+            return np.multiply(direction_rows[w], s)
+        np.multiply(direction_rows[w], s, mean)
+        # u' = I |u| G(x, t), added to the mean
+        _, scale = self._uniform_mean(w, s)
+        u = self.gusts[w](x, t)
+        np.multiply(u, scale, u)
+        np.add(u, mean, u)
+        return u
+
+    def _rows_for(self, k: int) -> tuple:
+        """Scratch for k points: the winds' directions, one row per point (m,k,3), and a (k,3) buffer."""
+        rows = self._rows.get(k)
+        if rows is None:
+            if len(self._rows) >= 8:
+                self._rows.clear()
+            rows = self._rows[k] = (np.repeat(self.direction[:, None, :], k, axis=1), np.empty((k, 3)))
+        return rows
+
+    def _uniform_at_one_point(self, w: int, x: np.ndarray, s: float, t: float) -> tuple:
+        """u = s d + I |s d| G(x, t) at one point x (1,3), three floats."""
+        mean, scale = self._uniform_mean(w, s)
+        if scale is None:
+            return mean
+        # u' = I |u| G(x, t), added to the mean
+        g0, g1, g2 = self.gusts[w].at_one_point(x, t)
+        return mean[0] + scale * g0, mean[1] + scale * g1, mean[2] + scale * g2
+
+    def _uniform_mean(self, w: int, s: float) -> tuple:
+        """A uniform wind's mean u = s d (three floats: the same at every point) and its gusts' scale I |u|
+        (None without gusts)."""
+        d0, d1, d2 = self._direction_floats[w]
+        # u = s d
+        mean = (s * d0, s * d1, s * d2)
+        if self.gusts[w] is None:
+            return mean, None
+        # I |u|, |u| = sqrt(u . u) with its terms added in np.einsum's order (as a source wind's rows of |u|)
+        size = math.sqrt(mean[0] * mean[0] + mean[2] * mean[2] + mean[1] * mean[1])
+        return mean, self._turbulence_floats[w] * size
+
+    def _source(self, w: int, x: np.ndarray, s: float, t: float) -> np.ndarray:
+        """u = s f(|r|) c(theta) e + I |u| G(x, t)."""
+        u = self._source_mean(w, x, s)
+        if self.gusts[w] is not None:
+            # u' = I |u| G(x, t)
+            u += self.turbulence[w] * np.sqrt(np.einsum("ij,ij->i", u, u))[:, None] * self.gusts[w](x, t)
+        return u
+
+    def _source_mean(self, w: int, x: np.ndarray, s: float) -> np.ndarray:
         d = self.direction[w]
-        if not self.is_source[w]:
-            # u = s d at every point
-            u = np.empty(x.shape)
-            u[:] = s * d
-            return u
         r = x - self.origin[w]
         dist = np.sqrt(np.einsum("ij,ij->i", r, r))
         e = r / np.maximum(dist, 1e-300)[:, None]

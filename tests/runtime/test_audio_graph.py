@@ -122,6 +122,24 @@ def test_rendering_does_not_depend_on_the_block_size():
     assert small == pytest.approx(big, abs=1e-9)
 
 
+def test_the_offline_render_equals_the_streamed_blocks():
+    """render() goes OFFLINE_BLOCKS blocks at a time; a stream goes block by block: the same samples."""
+    from isaac_runtime.audio.render import Renderer
+
+    sounds = ("sound a on collide(bar, floor) { play pan(bandpass(modal(bar) * impulse + noise(pink) * 0.01, "
+              "1 kHz + 500 Hz * t / 1 s, 2), sin(t / 0.2 s)) }\n"
+              "sound b on collide(bar, floor) { play impact() * impulse }\n"
+              "sound c on always { play decay(sine(300 Hz), 0.3 s) * 0.1 }")
+    plan = plan_of(sounds, channels=2, block=512)
+    record = plan.synthetic_record([hit(0.1), hit(0.1004, impulse=0.2), hit(0.55)])
+    renderer = Renderer(plan, record, plan.block)
+    streamed = []
+    while renderer.position < plan.samples:
+        streamed.append(renderer.next_block(final=True))
+    offline = plan.render(record)
+    assert offline == pytest.approx(np.concatenate(streamed, axis=1).T, abs=1e-12)
+
+
 def test_noise_is_seeded_and_reproducible():
     plan = plan_of("sound n on always { play noise() }")
     a, b = render(plan), render(plan)
@@ -144,6 +162,46 @@ def test_pole_filter_equals_lfilter_across_blocks(coefficients):
     cuts = [0, 1000, 1030, 1100, 3000, 5000]
     out = np.concatenate([f.run(x[a:b]) for a, b in zip(cuts, cuts[1:])])
     assert out == pytest.approx(reference, abs=2e-6 * np.abs(reference).max())
+
+
+def test_swept_filter_equals_a_filter_retuned_every_period():
+    """run_swept (all the periods' tables at once) against set + run period by period, mono and stereo, in two
+    blocks, the last period cut short."""
+    from isaac_runtime.audio.nodes import biquads
+
+    period, rng = 128, np.random.default_rng(3)
+    for channels in ((), (2,)):
+        x = rng.standard_normal(channels + (5 * period + 37,))
+        b, a = biquads("bandpass", np.geomspace(200.0, 9000.0, 6), np.linspace(0.6, 8.0, 6), FS)
+        swept, stepped = PoleFilter(b[0], a[0], channels), PoleFilter(b[0], a[0], channels)
+        y = np.concatenate([swept.run_swept(x[..., :3 * period], b[:3], a[:3], period),
+                            swept.run_swept(x[..., 3 * period:], b[3:], a[3:], period)], axis=-1)
+        reference = []
+        for i in range(6):
+            stepped.set(b[i], a[i])
+            reference.append(stepped.run(x[..., i * period:(i + 1) * period]))
+        reference = np.concatenate(reference, axis=-1)
+        assert y == pytest.approx(reference, abs=1e-12 * np.abs(reference).max())
+        assert swept.state == pytest.approx(stepped.state, abs=1e-12 * np.abs(stepped.state).max())
+
+
+def test_biquads_at_once_equal_one_by_one():
+    from isaac_runtime.audio.nodes import biquads
+
+    freq, q = np.array([5.0, 300.0, 2000.0, 12000.0]), np.array([0.3, 0.7071, 2.0, 30.0])
+    for kind in ("lowpass", "highpass", "bandpass"):
+        b, a = biquads(kind, freq, q, FS)
+        for i in range(len(freq)):
+            b1, a1 = biquad(kind, freq[i], q[i], FS)
+            assert b[i] == pytest.approx(b1, rel=1e-13, abs=1e-16) and a[i] == pytest.approx(a1, rel=1e-13)
+
+
+def test_cos_and_sin_from_the_half_angle_tangent():
+    from isaac_runtime.audio.nodes import cos_sin
+
+    angle = np.concatenate([np.linspace(-50.0, 50.0, 100001), np.pi * np.arange(-9, 10), [np.pi / 2, 0.0]])
+    cos, sin = cos_sin(angle)
+    assert np.abs(cos - np.cos(angle)).max() < 1e-15 and np.abs(sin - np.sin(angle)).max() < 1e-15
 
 
 def test_residuez_reassembles_the_transfer_function():

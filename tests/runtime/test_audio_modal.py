@@ -170,6 +170,35 @@ def test_bank_equals_the_two_pole_recursion_across_blocks():
     assert np.concatenate(out) == pytest.approx(reference, abs=1e-10 * np.abs(reference).max())
 
 
+def bank_blocks(bank, total: int, block: int, inputs) -> np.ndarray:
+    """A bank rendered in blocks of `block` samples; inputs (s0, x, gains) cut at the blocks' edges."""
+    out = []
+    for b0 in range(0, total, block):
+        n = min(block, total - b0)
+        parts = [(g, max(s0, b0) - b0, x[max(s0, b0) - s0:min(s0 + len(x), b0 + n) - s0])
+                 for s0, x, g in inputs if max(s0, b0) < min(s0 + len(x), b0 + n)]
+        out.append(bank.render(n, parts, b0))
+    return np.concatenate(out)
+
+
+def test_bank_does_not_depend_on_the_block_size_and_groups_fall_silent_apart():
+    """Two bodies in one bank (groups) against each alone, in blocks of several sizes: the same samples, each
+    body's silence tested at the same frame edges (one rings briefly, the other long, hit again later)."""
+    fs, frame, total = 8000.0, 256, 6000
+    f, d, a = np.array([300.0, 700.0, 450.0, 1200.0]), np.array([400.0, 500.0, 2.0, 3.0]), np.ones(4) / 4
+    pulse = half_sine(0.001, fs)
+    inputs = [(100, pulse, np.array([1.0, 1.0, 0.0, 0.0])), (300, pulse, np.array([0.0, 0.0, 1.0, 0.5])),
+              (3000, pulse, np.array([1.0, 0.5, 0.0, 0.0]))]
+    alone = sum(bank_blocks(ResonatorBank(f[part], d[part], a[part], fs, frame), total, frame,
+                            [(s0, x, g[part]) for s0, x, g in inputs]) for part in (slice(0, 2), slice(2, 4)))
+    for block in (frame, 100, 700, 4 * frame):
+        together = bank_blocks(ResonatorBank(f, d, a, fs, frame, groups=[2, 2]), total, block, inputs)
+        assert together == pytest.approx(alone, abs=1e-13)
+    quiet = ResonatorBank(f, d, a, fs, frame, groups=[2, 2])
+    bank_blocks(quiet, 2000, frame, inputs[:2])
+    assert not np.any(quiet.state[:2]) and np.all(quiet.state[2:] != 0)  # the brief one has fallen silent
+
+
 def test_a_second_hit_adds_to_the_ringing():
     plan = bar_plan()
     both = plan.render(plan.synthetic_record([hit(0.2), hit(0.5, impulse=0.3)]))

@@ -120,6 +120,61 @@ def test_whistle_sits_at_the_strouhal_frequency():
     assert np.sum(spectrum[band] ** 2) > 0.5 * np.sum(spectrum**2)
 
 
+WHISTLES = """
+scene w {
+  time 0 s .. 1 s
+  audio { rate 22050 Hz }
+  body pole static cylinder { radius 2.5 mm  length 1 m }
+  body rod static cylinder { radius 4 mm  length 1 m  at (1, 0, 0) }
+  wind breeze { direction (1, 0, 0)  speed 5 m/s }
+  sound tones on wind(breeze) { play mix(whistle(pole), whistle(rod, q = 10)) }
+}
+"""
+
+
+def whistles_render(block: int = 2048, stream: bool = False):
+    from isaac_runtime.audio.render import Renderer
+
+    plan = compile_audio(load_text(WHISTLES, name="w.isaac").scene, block=block)
+    times = np.linspace(0.0, 1.0, 101)
+    record = plan.synthetic_record([], wind={"pole": (times, 4.0 + 6.0 * times), "rod": (times, 9.0 - 5.0 * times)})
+    if not stream:
+        return plan.render(record)[:, 0]
+    renderer = Renderer(plan, record, plan.block)
+    return np.concatenate([renderer.next_block(final=True)[0] for _ in range(-(-plan.samples // block))])
+
+
+def test_a_mix_of_whistles_renders_them_as_one_node_with_the_same_samples(monkeypatch):
+    """mix(whistle(a), whistle(b)) renders the two as one node (arrays over the whistles); each alone, the
+    same samples to rounding."""
+    from isaac_runtime.audio import graph
+
+    together = whistles_render()
+    monkeypatch.setattr(graph, "merge_whistles", lambda nodes: nodes)
+    apart = whistles_render()
+    assert np.abs(apart).max() > 0.01
+    assert together == pytest.approx(apart, abs=1e-12 * np.abs(apart).max())
+
+
+def test_whistles_do_not_depend_on_the_block_size():
+    """A whistle reads its envelope on a grid fixed in the samples (nodes.FRAME): blocks of whole frames, offline
+    or streamed, give the same samples."""
+    reference = whistles_render(2048, stream=True)
+    for block, stream in ((2048, False), (4096, True), (8192, False)):
+        assert whistles_render(block, stream) == pytest.approx(reference, abs=1e-11 * np.abs(reference).max())
+
+
+def test_reading_a_periodic_profile_over_a_stretch_equals_reading_it_sample_by_sample():
+    from isaac_runtime.audio.noise import read_periodic
+
+    profile = np.random.default_rng(5).standard_normal(1000)
+    for position in (np.linspace(990.3, 1012.7, 300), np.linspace(-20.5, 3000.25, 400), np.array([999.5])):
+        i = np.floor(position).astype(int)
+        frac = position - i
+        expected = profile[i % 1000] * (1.0 - frac) + profile[(i + 1) % 1000] * frac
+        assert read_periodic(profile, position) == pytest.approx(expected, abs=1e-14)
+
+
 @pytest.mark.slow
 def test_scrape_scene_level_follows_the_block(tmp_path):
     """scenes/scrape.isaac: the sound's level follows the block's sliding speed (from its own run)."""

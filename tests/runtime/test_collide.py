@@ -193,6 +193,60 @@ def test_broad_phase_early_out_never_hides_a_pair(planes):
     assert quiet > 30
 
 
+@pytest.mark.parametrize("planes", [0, 1])
+def test_broad_phase_room_never_hides_a_pair(planes):
+    """Once the early-out finds nothing near, it measures how far the dynamic bodies may move before it could
+    find something (the room) and then only checks that they stay inside it. Over random scenes of dynamic and
+    still bodies (and a tilted floor) moved by random steps of about the room's size, on both sides of it, or all
+    toward one another to the edge of the room: every time the room says nothing is near, the full test
+    (`_cubes_near`) and the full broad phase (`pairs`) say so too; and the room does say so for most moves."""
+    rng = np.random.default_rng(5)
+    trusted = 0
+    for trial in range(200):
+        n = 7
+        kinds = rng.choice([SPHERE, BOX, CAPSULE, CYLINDER], n)
+        kinds[:planes] = PLANE
+        table = random_table(kinds, rng)
+        dynamic = rng.random(n) < 0.5
+        dynamic[:planes] = False
+        dynamic[planes] = True
+        still = ~dynamic
+        spread = rng.choice([1.5, 3.0, 6.0])
+        x0, R0 = random_poses(n, rng, spread)
+        x0[:planes] = (0.0, -spread - 0.5, 0.0)
+        R0[:planes] = quat_to_matrix(np.array([0.99, 0.1, 0.0, 0.05]) / np.linalg.norm([0.99, 0.1, 0.0, 0.05]))
+        broad = BroadPhase(table, np.arange(n), dynamic, np.zeros(0, np.int64), 1e-4, still=still)
+        assert broad.roomy
+        x, R = x0.copy(), R0.copy()
+        for step in range(20):
+            room = broad.room if np.isfinite(broad.room) and broad.room > 0 else 0.05
+            x_before, R_before = x.copy(), R.copy()
+            if step % 2:  # anywhere about the room's size
+                x[dynamic] += rng.uniform(-1.3, 1.3, (int(dynamic.sum()), 3)) * room * rng.choice([0.3, 1.0])
+            else:  # the dynamic bodies all toward one another, as far as the room lets them
+                x[dynamic] += 0.999 * room * np.sign(x[dynamic].mean(axis=0) - x[dynamic])
+            R[dynamic] = random_poses(n, rng, 1.0)[1][dynamic]
+            rotations = lambda index, R=R, R_before=R_before: (R[index], R_before[index])
+            if broad._within_room(x, x_before):
+                trusted += 1
+                assert not broad._cubes_near(x, rotations, x_before), (trial, step)
+                assert not len(broad.pairs((x, R), (x_before, R_before))), (trial, step)
+            near = broad.anything_near(x, rotations, x_before)
+            assert near or not len(broad.pairs((x, R), (x_before, R_before))), (trial, step)
+    assert trusted > 400
+
+
+def test_broad_phase_room_is_off_when_something_else_moves():
+    """A kinematic body (or a plane that is not still) changes its box without the dynamic bodies moving: then
+    there is no room, and every step runs the full test."""
+    rng = np.random.default_rng(2)
+    table = random_table(np.array([SPHERE, BOX, BOX]), rng)
+    dynamic = np.array([True, False, False])
+    broad = BroadPhase(table, np.arange(3), dynamic, np.zeros(0, np.int64), 1e-4,
+                       still=np.array([False, True, False]))
+    assert not broad.roomy
+
+
 # ---- narrow phase --------------------------------------------------------------------------------------------
 
 def contact(kind_a, kind_b, table, x, R, margin=np.inf):
@@ -369,6 +423,29 @@ def test_lcp_solution_satisfies_signorini_and_coulomb():
             assert np.hypot(lam[j], lam[j + 1]) <= mu[c] * lam[c] * (1 + 1e-9) + 1e-12
             if np.hypot(lam[j], lam[j + 1]) < mu[c] * lam[c] * (1 - 1e-6):  # inside the cone: sticking
                 assert np.hypot(u[j], u[j + 1]) <= 1e-6 * scale
+
+
+def test_pgs_sweeps_agree_in_lists_and_in_arrays(monkeypatch):
+    """Projected Gauss-Seidel keeps its velocities in Python lists for a few rows and in numpy arrays beyond:
+    the same operations in the same order, so the same numbers to the last bit."""
+    rng = np.random.default_rng(8)
+    for trial in range(100):
+        k = int(rng.integers(1, 6))
+        tangent = np.full(k, -1)
+        r = k
+        for c in np.flatnonzero(rng.random(k) < 0.7):
+            tangent[c], r = r, r + 2
+        A = rng.normal(size=(r, r + 2))
+        W, u0 = A @ A.T, rng.normal(size=r)
+        target = np.zeros(r)
+        target[:k] = rng.uniform(0, 1, k) * (rng.random(k) < 0.5)
+        mu = rng.uniform(0.1, 1.0, k)
+        start = lcp._project(np.abs(rng.normal(size=r)), mu, tangent)
+        monkeypatch.setattr(lcp, "PGS_LISTS_UP_TO", 0)
+        arrays = lcp._pgs(W, u0, target, mu, tangent, start, 1e-10)
+        monkeypatch.setattr(lcp, "PGS_LISTS_UP_TO", r)
+        lists = lcp._pgs(W, u0, target, mu, tangent, start, 1e-10)
+        assert np.array_equal(arrays, lists), trial
 
 
 def test_single_impact_matches_the_textbook_impulse():

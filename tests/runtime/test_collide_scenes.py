@@ -224,6 +224,39 @@ def test_a_fast_small_sphere_does_not_cross_a_thin_board(solver, speed, start):
     assert event["time"] == pytest.approx((-start - 0.015) / speed, abs=1e-9)
 
 
+# ---- the broad phase's room ------------------------------------------------------------------------------------
+
+def test_chimes_strikes_are_the_same_with_and_without_the_room(monkeypatch):
+    """The early-out's room (pairs.py) skips the broad phase while the clapper cannot have come near a tube. A
+    strike it missed, or found at another time, would change the events: they must be exactly those of the
+    same run checking every step in full. The run covers the first strikes, found at their sub-step times."""
+    from isaac_runtime.collide import pairs
+
+    scene = load_scene(SCENES / "chimes.isaac").scene
+    with_room = simulate(scene, RunOptions(until=4.0))
+    monkeypatch.setattr(pairs.BroadPhase, "_within_room", lambda self, x, x_before: False)
+    every_step = simulate(scene, RunOptions(until=4.0))
+    assert len(impacts(every_step)) >= 4
+    assert with_room.simulation.events == every_step.simulation.events
+    assert np.array_equal(with_room.simulation.state.x, every_step.simulation.state.x)
+
+
+@pytest.mark.parametrize("name,until", [("cradle", 1.2), ("chimes", 1.5)])
+def test_impacts_are_located_the_same_with_the_first_slope_kept(monkeypatch, name, until):
+    """The time-of-impact search copies the first slope of its trials after the first (collider.FirstSlope):
+    events and state to the last bit as when the dynamics compute it every time."""
+    from isaac_runtime.collide import collider
+
+    scene = load_scene(SCENES / f"{name}.isaac").scene
+    kept = simulate(scene, RunOptions(until=until))
+    assert kept.simulation.collider.stats["impacts located"] >= 1
+    monkeypatch.setattr(collider.FirstSlope, "copy_into", lambda self, t, a, alpha: False)
+    computed = simulate(scene, RunOptions(until=until))
+    assert kept.simulation.events == computed.simulation.events
+    for array in ("x", "q", "v", "w"):
+        assert np.array_equal(getattr(kept.simulation.state, array), getattr(computed.simulation.state, array))
+
+
 # ---- meshes ----------------------------------------------------------------------------------------------------
 
 # the icosahedron's first face turned down, then tilted by 4 degrees
@@ -269,3 +302,24 @@ def test_procedural_bounce_and_scrape():
     scrape = run("scrape", 1.0, "procedural")
     speed = scrape.simulation.state.v[1] @ [math.cos(math.radians(30)), -math.sin(math.radians(30)), 0.0]
     assert speed == pytest.approx(G * (math.sin(math.radians(30)) - 0.2 * math.cos(math.radians(30))), rel=1e-3)
+
+
+def test_a_static_body_given_a_velocity_hits_what_is_in_its_way():
+    """A static body declared with a velocity drifts with it (nothing changes that velocity). It is not one that
+    never moves: the broad phase's early-out recomputes its box every step instead of keeping its first one,
+    so the wall below meets the ball (with the kept box it passed through it)."""
+    sim = Simulation.from_text("""scene drift {
+      time 0 s .. 2 s
+      gravity (0, 0, 0) m/s2
+      body wall static box { size (1, 1, 1)  velocity (1, 0, 0) }
+      body ball sphere { radius 0.1 m  mass 1 kg  at (2, 0, 0) }
+    }""")
+    sim.advance_to(2.0)
+    event, = impacts_of(sim)
+    # the wall's face (x = 0.5 + t) meets the ball's surface (x = 1.9) at t = 1.4 s
+    assert event["time"] == pytest.approx(1.4, abs=1e-8)
+    assert sim.state.v[1, 0] == pytest.approx(1.5)  # restitution 0.5 off an immovable wall moving at 1 m/s
+
+
+def impacts_of(sim):
+    return [e for e in sim.events if e["kind"] == "impact"]

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from isaac_lang.load import load_text
+from isaac_runtime import dynamics as dynamics_module
 from isaac_runtime.constraints.layout import WORLD
 from isaac_runtime.integrate import INTEGRATORS, Stages
 from isaac_runtime.plan import PlanOptions, compile_plan
@@ -119,10 +120,16 @@ def _dense_reference(sim, t, x, q, v, w, epoch):
     return acc[:, :3], acc[:, 3:]
 
 
-@pytest.mark.parametrize("text,linear_solver", [(SCENE, "dense"), (SCENE, "sparse"), (TREE, "tree"),
-                                                (TREE, "dense")], ids=["scene-dense", "scene-sparse", "tree-tree",
-                                                                       "tree-dense"])
-def test_accelerations_match_the_dense_equations(text, linear_solver):
+@pytest.mark.parametrize("text,linear_solver,body_space", [
+    (SCENE, "dense", True), (SCENE, "dense", False), (SCENE, "sparse", False), (TREE, "tree", False),
+    (TREE, "dense", True), (TREE, "dense", False)],
+    ids=["scene-dense-body-space", "scene-dense-slots", "scene-sparse", "tree-tree", "tree-dense-body-space",
+         "tree-dense-slots"])
+def test_accelerations_match_the_dense_equations(text, linear_solver, body_space, monkeypatch):
+    """Both forms of the dense stage (in body space for few bodies, by slot pairs beyond) and the sparse and tree
+    solvers give the accelerations of the equations written out with full matrices."""
+    if not body_space:
+        monkeypatch.setattr(dynamics_module, "BODY_SPACE_MAX_BODIES", 0)
     sim = _simulation(linear_solver, text)
     rng = np.random.default_rng(3)
     c = sim.plan.constraints
@@ -137,6 +144,7 @@ def test_accelerations_match_the_dense_equations(text, linear_solver):
             np.testing.assert_allclose(a, a_ref, rtol=0, atol=1e-9 * scale)
             np.testing.assert_allclose(alpha, alpha_ref, rtol=0, atol=1e-9 * scale)
         assert epoch.solver == linear_solver
+        assert (sim.dynamics._active_rows(epoch).body_space is not None) == body_space
         assert sim.dynamics.scratch.last_solve.method in ("cholesky", "lu", "tree")
 
 
@@ -195,3 +203,14 @@ def test_packed_integrators_match_plain_ones(name, plain):
         INTEGRATORS[name](_toy_accelerations, 0.3, 0.01, y, stages, None)
         for got, want in zip(y, expected):
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-14)
+
+
+def test_positions_at_gives_the_rows_C():
+    """The constraint error's evaluation of C alone (Simulation.constraint_errors) is the full rows' C."""
+    sim = _simulation("dense")
+    rng = np.random.default_rng(5)
+    for t in EPOCH_TIMES:
+        x, q, v, w = _random_state(sim, rng)
+        full = sim.dynamics.rows_at(sim.dynamics.frame(x, q, v, w, t)).C.copy()
+        sim.dynamics.rows_at(sim.dynamics.frame(*_random_state(sim, rng), t + 0.1))  # C of another state
+        np.testing.assert_array_equal(sim.dynamics.positions_at(sim.dynamics.frame(x, q, v, w, t)).C, full)

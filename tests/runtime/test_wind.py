@@ -331,6 +331,87 @@ def test_cached_lattice_gives_the_hashed_noise_to_the_bit():
             assert np.array_equal(field(points, t), np.sum(field.amplitude * noise, axis=1).T)
 
 
+def test_gusts_at_one_point_and_at_many_are_value_noise_to_the_bit():
+    """The flat per-call kernel (one point as floats, many as arrays) against value_noise, along walks that
+    step back in time, jump far (new lattice windows) and cross negative cells."""
+    field = T.GustField(seed=21, time_scale=0.3)
+    rng = np.random.default_rng(4)
+    one, crowd = rng.normal(size=(1, 3)), rng.normal(size=(40, 3)) * 3.0
+    t = -2.0
+    for step in range(1500):
+        t += rng.choice([0.004, 0.002, 0.0, -0.006, 0.9])
+        one = one + rng.normal(size=(1, 3)) * 3e-3
+        crowd = crowd + rng.normal(size=(40, 3)) * 3e-3
+        for points in (one, crowd):
+            phase = t / field.time_scale + np.einsum("coj,ij->coi", field.k, points) / field.length
+            noise = T.value_noise(field.frequency * phase + field.offset, field.salt)
+            expected = np.sum(field.amplitude * noise, axis=1).T
+            assert np.array_equal(field(points, t), expected)
+            if len(points) == 1:
+                assert field.at_one_point(points, t) == tuple(expected[0])
+
+
+def test_lattice_window_is_the_lattice_to_the_bit():
+    """The windows of hashed cells give lattice() at every cell an element walks to (up, down, far)."""
+    salts = np.arange(5, dtype=np.uint64) * np.uint64(977)
+    with np.errstate(over="ignore"):
+        window = T.LatticeWindow(salts * T._GOLDEN)
+    rng = np.random.default_rng(8)
+    cell = np.floor(rng.normal(size=5) * 50)
+    value, rise = np.empty(5), np.empty(5)
+    for _ in range(2000):
+        cell = cell + rng.choice([0, 1, 1, 2, -1, T.WINDOW + 3, -400], size=5)
+        window.look_up(cell, value, rise)
+        a = T.lattice(cell, salts)
+        assert np.array_equal(value, a) and np.array_equal(rise, T.lattice(cell + 1, salts) - a)
+
+
+def test_einsum_core_is_np_einsum():
+    k, x = np.random.default_rng(3).normal(size=(2, 12, 3))
+    assert np.array_equal(T.einsum("fj,ij->if", k, x), np.einsum("fj,ij->if", k, x))
+
+
+@pytest.mark.parametrize("winds", [
+    "wind a { direction (1, 0, 0.4)  speed 5 m/s + 2 m/s * sin(2 * pi * t / 7 s)  turbulence 0.6  gust 0.4 s }",
+    "wind a { direction (0, 0, 1)  speed 3 m/s }",
+    "wind a { direction (1, 0, 0)  speed 2 m/s  turbulence 0.3 }  "
+    "wind b { from (0, 1, -2) m  toward (0, 0, 1)  speed 4 m/s  falloff inverse  distance 1 m  spread 30 deg  "
+    "turbulence 0.2  gust 0.3 s }"])
+def test_one_point_velocity_is_the_vectorized_one_to_the_bit(winds):
+    """velocity() at one point takes the floats path; each row of a many-point call is the same number."""
+    fields = wind_plan("", winds).forces.wind.fields
+    rng = np.random.default_rng(6)
+    x = rng.normal(size=(7, 3))
+    for t in np.linspace(0.0, 3.0, 61):
+        many = fields.velocity(x, t)
+        for i in range(len(x)):
+            assert np.array_equal(fields.velocity(x[i:i + 1], t), many[i:i + 1])
+            assert fields.velocity_at_one_point(x[i:i + 1], t) == tuple(many[i])
+        for w in range(len(fields.names)):
+            assert np.array_equal(fields.velocity(x[:1], t, w), fields.velocity(x, t, w)[:1])
+
+
+@pytest.mark.parametrize("body", ["", "area 120 cm2  drag 1.2"])
+def test_one_body_force_path_is_the_general_kernel_to_the_bit(body):
+    """One sphere (or a body with an `area`) in the wind, force model: apply's float path adds what the general
+    path (the same plan with the float path switched off) adds, and records the same speeds."""
+    winds = "wind a { direction (1, 0, 0.4)  speed 5 m/s + 2 m/s * sin(t / 1 s)  turbulence 0.6  gust 0.4 s }"
+    fast, general = wind_plan(body, winds).forces.wind, wind_plan(body, winds).forces.wind
+    assert fast.one_plain_body == 0
+    general.one_plain_body = None
+    rng = np.random.default_rng(9)
+    for t in np.linspace(0.0, 2.0, 201):
+        x, v, w = rng.normal(size=(3, 1, 3))
+        R = quat_to_matrix(quat_from_axis_angle(rng.normal(size=(1, 3)), rng.uniform(0, 3, 1)))
+        force = np.repeat(rng.normal(size=(1, 1, 3)), 2, axis=0)  # the same forces already there, twice
+        torque = np.repeat(rng.normal(size=(1, 1, 3)), 2, axis=0)
+        for plan, f, tq in ((fast, force[0], torque[0]), (general, force[1], torque[1])):
+            plan.apply(x, v, w, R, t, f, tq)
+        assert np.array_equal(force[0], force[1]) and np.array_equal(torque[0], torque[1])
+        assert np.array_equal(fast.relative_speed, general.relative_speed)
+        assert np.array_equal(fast.last_air_velocity, general.last_air_velocity)
+
+
 def test_turbulence_is_reproducible_and_scales_with_the_wind():
     winds = "wind a { direction (1, 0, 0)  speed 2 m/s * smoothstep(0, 1, t / 1 s)  turbulence 0.3  gust 0.5 s }"
     one, two, other = wind_plan("", winds, 1), wind_plan("", winds, 1), wind_plan("", winds, 2)
