@@ -47,8 +47,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 import scipy.linalg.lapack
-import scipy.sparse
-import scipy.sparse.linalg
 
 # A Cholesky/LU pivot or eigenvalue below RANK_RTOL * max(diag A) counts as zero (rank-deficient system).
 RANK_RTOL = 1e-10
@@ -278,7 +276,7 @@ class SparsePattern:
         rows_of_keys = (keys % max(m, 1)).astype(np.int64)
         return cls(m, rb, rows_of_keys, indptr, inverse[len(pr):], pr, ps, qr, qs, p_dest)
 
-    def assemble(self, J, MJ) -> scipy.sparse.csc_matrix:
+    def assemble(self, J, MJ) -> "scipy.sparse.csc_matrix":
         """A = J M^-1 J^T as CSC from J (m,2,6) and MJ = apply_inverse_mass(...) (m,2,6).
 
         The structure never changes, so the matrix object is built once and its data refilled: the result is
@@ -288,15 +286,24 @@ class SparsePattern:
         vals = np.einsum("pk,pk->p", np.take(J_slot, self.p_slot, axis=0), np.take(MJ_slot, self.q_slot, axis=0))
         data = np.bincount(self.p_dest, weights=vals, minlength=len(self.indices))
         if self._matrix is None:
-            self._matrix = scipy.sparse.csc_matrix((data, self.indices, self.indptr), shape=(self.m, self.m))
+            self._matrix = _sparse().csc_matrix((data, self.indices, self.indptr), shape=(self.m, self.m))
         else:
             self._matrix.data[:] = data
         return self._matrix
 
 
+def _sparse():
+    """scipy.sparse (with its linalg), imported on first use: a plan whose epochs all solve dense or by the tree
+    never needs it (17 ms of imports)."""
+    import scipy.sparse
+    import scipy.sparse.linalg  # noqa: F401  (binds scipy.sparse.linalg)
+
+    return scipy.sparse
+
+
 def _splu(A):
     # A is symmetric: minimum degree on A^T + A, diagonal pivots (SuperLU's symmetric mode).
-    return scipy.sparse.linalg.splu(
+    return _sparse().linalg.splu(
         A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)
     )
 

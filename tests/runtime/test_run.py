@@ -73,9 +73,11 @@ def test_plan_lists_stages(capsys):
 
 
 def test_readme_command_runs_the_pendulum_without_sound_or_meshes(tmp_path):
-    # the command a newcomer runs; a scene without sound never imports soundfile, without meshes never fcl
+    # the command a newcomer runs; a scene without sound never imports soundfile, without meshes never fcl, and
+    # a 3-row system (a dense solve) never scipy.sparse
     code = ("import sys; from isaac_lang.cli import main; rc = main(['run', sys.argv[1], '--out', sys.argv[2], "
-            "'--until', '0.1']); assert 'soundfile' not in sys.modules and 'fcl' not in sys.modules; sys.exit(rc)")
+            "'--until', '0.1']); assert 'soundfile' not in sys.modules and 'fcl' not in sys.modules; "
+            "assert 'scipy.sparse' not in sys.modules, 'scipy.sparse imported'; sys.exit(rc)")
     done = subprocess.run([sys.executable, "-c", code, str(SCENES / "pendulum.isaac"), str(tmp_path)],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
