@@ -162,6 +162,13 @@ def test_broad_phase_finds_exactly_the_overlapping_boxes(n, spread):
     assert found == expected and len(found) > n // 4
 
 
+def random_bodies(n: int, planes: int, rng) -> tuple:
+    """(kinds, table) of n random finite bodies, the first `planes` of them planes."""
+    kinds = rng.choice([SPHERE, BOX, CAPSULE, CYLINDER], n)
+    kinds[:planes] = PLANE
+    return kinds, random_table(kinds, rng)
+
+
 @pytest.mark.parametrize("planes", [0, 1])
 def test_broad_phase_early_out_never_hides_a_pair(planes):
     """anything_near (cubes about the dynamic bodies, kept boxes of the still ones) says False only when the
@@ -171,9 +178,7 @@ def test_broad_phase_early_out_never_hides_a_pair(planes):
     quiet = 0
     for trial in range(300):
         n = 8
-        kinds = rng.choice([SPHERE, BOX, CAPSULE, CYLINDER], n)
-        kinds[:planes] = PLANE
-        table = random_table(kinds, rng)
+        kinds, table = random_bodies(n, planes, rng)
         table.centre[kinds == BOX] = rng.normal(size=(int(np.sum(kinds == BOX)), 3)) * 0.05  # off-centre boxes
         dynamic = rng.random(n) < 0.4
         dynamic[:planes] = False
@@ -204,9 +209,7 @@ def test_broad_phase_room_never_hides_a_pair(planes):
     trusted = 0
     for trial in range(200):
         n = 7
-        kinds = rng.choice([SPHERE, BOX, CAPSULE, CYLINDER], n)
-        kinds[:planes] = PLANE
-        table = random_table(kinds, rng)
+        kinds, table = random_bodies(n, planes, rng)
         dynamic = rng.random(n) < 0.5
         dynamic[:planes] = False
         dynamic[planes] = True
