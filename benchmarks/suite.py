@@ -20,42 +20,26 @@ for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_name, "1")
 
 import argparse  # noqa: E402
+import importlib  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from . import common  # noqa: E402
 
-SECTIONS = ("work_precision", "scaling", "stress", "specialization", "audio", "profile")
+# the sections in running order, and the module of each (with run(quick, out) -> dict)
+SECTION_MODULES = {"work_precision": "work_precision", "scaling": "scaling", "stress": "stress",
+                   "specialization": "specialization", "audio": "audio_rtf", "profile": "profiling"}
+SECTIONS = tuple(SECTION_MODULES)
 DOC = common.REPO / "docs" / "performance.md"
 
 
 def run_section(name: str, quick: bool, out: Path) -> dict:
-    if name == "work_precision":
-        from . import work_precision
-
-        return work_precision.run(quick=quick, out=out)
-    if name == "scaling":
-        from . import scaling
-
-        return scaling.run(quick=quick, out=out)
-    if name == "stress":
-        from . import stress
-
-        return stress.run(quick=quick, out=out)
-    if name == "specialization":
-        from . import specialization
-
-        return specialization.run(quick=quick, out=out)
-    if name == "audio":
-        from . import audio_rtf
-
-        return audio_rtf.run(quick=quick, out=out)
-    if name == "profile":
-        from . import profiling
-
-        return profiling.run(quick=quick, out=out)
-    raise ValueError(f"unknown section {name}; choose from {', '.join(SECTIONS)}")
+    """Run one section (its module is imported only now: a section's peers and plots cost nothing otherwise)."""
+    if name not in SECTION_MODULES:
+        raise ValueError(f"unknown section {name}; choose from {', '.join(SECTIONS)}")
+    module = importlib.import_module(f"{__package__}.{SECTION_MODULES[name]}")
+    return module.run(quick=quick, out=out)
 
 
 def run(quick: bool = False, only: list | None = None, out: Path | None = None, docs: bool | None = None) -> int:

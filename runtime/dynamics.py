@@ -86,8 +86,7 @@ class ActiveRows:
     their weights in it (-ks, -kd, -1, -kd, -1).
     """
 
-    def __init__(self, c: ConstraintPlan, epoch: Epoch, n: int, inv_mass: np.ndarray, kernels: list,
-                 block: RowBlock):
+    def __init__(self, c: ConstraintPlan, epoch: Epoch, n: int, inv_mass: np.ndarray, kernels: list):
         active = epoch.active
         self.rows = contiguous_slice(active)
         ends = list(c.family_offsets[1:]) + [c.total_rows]
@@ -246,8 +245,7 @@ class Dynamics:
     def _active_rows(self, epoch: Epoch) -> ActiveRows:
         entry = self._active.get(id(epoch))
         if entry is None or entry[0] is not epoch:
-            rows = ActiveRows(self.plan.constraints, epoch, self.n, self.plan.inv_mass, self._kernels,
-                              self.scratch.rows)
+            rows = ActiveRows(self.plan.constraints, epoch, self.n, self.plan.inv_mass, self._kernels)
             entry = self._active[id(epoch)] = (epoch, rows)
         return entry[1]
 

@@ -91,6 +91,22 @@ class Exciter(Node):
     def __init__(self, strength):
         self.strength = strength
         self._pulses: dict = {}
+        self._tails: list = []  # finite signals still sounding: the parts past the last block, from its end on
+
+    def _block_with_tails(self, n: int) -> np.ndarray:
+        """A new block of n samples holding what the earlier blocks' signals still had to play."""
+        out = np.zeros(n)
+        for x in self._tails:
+            out[: min(len(x), n)] += x[:n]
+        self._tails = [x[n:] for x in self._tails if len(x) > n]
+        return out
+
+    def _add_signal(self, out: np.ndarray, k0: int, x: np.ndarray) -> None:
+        """out[k0:] += x, the part of x beyond the block kept for the next ones."""
+        room = len(out) - k0
+        out[k0:k0 + min(room, len(x))] += x[:room]
+        if len(x) > room:
+            self._tails.append(x[room:])
 
     def pulse(self, tau: float, fs: float, area: bool = True) -> np.ndarray:
         key = (max(1, int(round(tau * fs))), area)
@@ -133,14 +149,10 @@ class Impact(Exciter):
     def __init__(self, banks: list, ringing: dict, strength, seed: tuple, fs: float, tau: float | None = None):
         super().__init__(strength)
         self.banks, self.ringing, self.seed, self.tau = Banks(banks, fs), ringing, seed, tau
-        self.pending = []  # contact sound (click + burst) still to play: arrays starting at the next block
 
     def render(self, ctx):
         inputs = []
-        out = np.zeros(ctx.n)
-        for x in self.pending:
-            out[: min(len(x), ctx.n)] += x[: ctx.n]
-        self.pending = [x[ctx.n:] for x in self.pending if len(x) > ctx.n]
+        out = self._block_with_tails(ctx.n)
         for k0, hit in ctx.hits:
             s = ctx.strength(self.strength, hit)
             if s == 0.0:
@@ -150,11 +162,7 @@ class Impact(Exciter):
                 if name in self.banks.slices:
                     inputs.append((s * self.banks.gains(name, hit.local.get(name)), k0, self.pulse(tau, ctx.fs)))
             rho = max((self.ringing.get(name, 0.0) for name in hit.bodies), default=0.0)
-            contact = s * self._contact_sound(tau, rho, ctx.fs, hit)
-            room = ctx.n - k0
-            out[k0:k0 + min(room, len(contact))] += contact[:room]
-            if len(contact) > room:
-                self.pending.append(contact[room:])
+            self._add_signal(out, k0, s * self._contact_sound(tau, rho, ctx.fs, hit))
         return out + self.banks.render(ctx.start, ctx.n, inputs)
 
     def _contact_sound(self, tau: float, rho: float, fs: float, hit) -> np.ndarray:
@@ -182,20 +190,12 @@ class Pulse(Exciter):
     def __init__(self, strength, duration: float | None = None):
         super().__init__(strength)
         self.duration = duration
-        self.pending = []
 
     def render(self, ctx):
-        out = np.zeros(ctx.n)
-        for x in self.pending:
-            out[: min(len(x), ctx.n)] += x[: ctx.n]
-        self.pending = [x[ctx.n:] for x in self.pending if len(x) > ctx.n]
+        out = self._block_with_tails(ctx.n)
         for k0, hit in ctx.hits:
             s = ctx.strength(self.strength, hit)
-            x = s * self.pulse(self.duration or hit.tau, ctx.fs, area=False)
-            room = ctx.n - k0
-            out[k0:k0 + min(room, len(x))] += x[:room]
-            if len(x) > room:
-                self.pending.append(x[room:])
+            self._add_signal(out, k0, s * self.pulse(self.duration or hit.tau, ctx.fs, area=False))
         return out
 
 

@@ -32,7 +32,6 @@ _BLEND_VARIANCE = 181.0 / 231.0
 # variance of a lattice value, uniform in [-1, 1)
 _LATTICE_VARIANCE = 1.0 / 3.0
 
-_MASK64 = np.uint64(0xFFFFFFFFFFFFFFFF)
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
 _MIX2 = np.uint64(0x94D049BB133111EB)
