@@ -228,7 +228,7 @@ def run_case(case: Stress, plan: str, quick: bool) -> dict:
             row["outcome"], row["message"] = "numerical error", str(error)
         row["wall_s"] = time.perf_counter() - begin
         row.update(steps=sim.state.steps, reached=sim.state.t - sim.plan.start, error=watch.error,
-                   energy_drift=watch.energy, redundant_rows_seen=bool(sim.dynamics.scratch.rank_deficient_seen))
+                   energy_drift=watch.energy, redundant_rows_seen=sim.rank_deficient())
         if watch.nan_at is not None and row["outcome"] != "numerical error":
             row["outcome"], row["message"] = "SILENT NaN", f"non-finite state at t = {watch.nan_at:g} s"
     except Exception as error:  # noqa: BLE001

@@ -34,13 +34,16 @@ class SolverOptions:
     plan: str  # dynamics | procedural | auto
     integrator: str  # rk4 | euler (semi-implicit) | midpoint
     step: float | None  # s; None: the runtime picks one and reports it
-    stabilize_frequency: float | None  # Hz; None: tied to the step (see docs/solver.md)
+    stabilize_frequency: float | None  # Hz; None: the default (10 Hz; 1 / (20 h) under `stabilization baumgarte`)
     damping_ratio: float  # 1 = critically damped
     linear_solver: str  # auto | dense | sparse | tree
     substeps: int  # procedural plan
     iterations: int  # procedural plan
     compliance: float  # procedural plan, m/N (0 = rigid)
-    projection: str = "auto"  # procedural plan: all rows at once (direct), colour sweeps (gauss-seidel), or auto
+    projection: str = "auto"  # procedural plan: all rows at once (direct), sweeps (gauss_seidel), or auto
+    # dynamics plan: held rows projected back after each step (projection), or Baumgarte on every row for the
+    # whole run (baumgarte: the dissertation's formulation)
+    stabilization: str = "projection"
 
 
 @dataclass(frozen=True)

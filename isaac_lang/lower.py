@@ -25,7 +25,8 @@ SETTINGS = {"time": "start .. end", "gravity": "acceleration vector", "frames": 
 SOLVER_PROPS = {"integrator": "rk4 | euler | midpoint", "step": "time step", "stabilize": "frequency",
                 "damping": "damping ratio", "linear": "auto | dense | sparse | tree", "substeps": "procedural",
                 "iterations": "procedural", "compliance": "procedural softness, m/N",
-                "projection": "procedural: auto | direct | gauss-seidel"}
+                "projection": "procedural: auto | direct | gauss_seidel",
+                "stabilization": "dynamics: projection | baumgarte"}
 CAMERA_PROPS = {"at": "position", "look": "point looked at", "up": "up direction", "fov": "vertical field of view"}
 LIGHT_PROPS = {"from": "where a distant light comes from", "at": "position", "to": "where it points",
                "intensity": "brightness", "color": "(r, g, b)"}
@@ -177,7 +178,8 @@ class SceneLowerer:
             substeps=props.integer("substeps", 20, minimum=1),
             iterations=props.integer("iterations", 1, minimum=1),
             compliance=props.scalar("compliance", U.DIMENSIONLESS, 0.0),
-            projection=props.word("projection", ("auto", "direct", "gauss-seidel"), "auto"),
+            projection=props.word("projection", ("auto", "direct", "gauss_seidel"), "auto"),
+            stabilization=props.word("stabilization", ("projection", "baumgarte"), "projection"),
         )
 
     # -- things -------------------------------------------------------------------------------------------

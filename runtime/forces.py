@@ -1,6 +1,5 @@
-"""Forces stage: gravity, springs and dampers, user loads, and the gyroscopic term, as force/torque arrays.
-
-Each kind is vectorized over all its instances; a kind the scene does not use is not in the plan at all.
+"""Forces stage, the plan's part: which forces act (gravity, springs and dampers, user loads, the gyroscopic
+term, wind) and their constants. The forces themselves are computed by the compiled core (core/forces.py).
 """
 from __future__ import annotations
 
@@ -11,7 +10,7 @@ import numpy as np
 from isaac_lang import expr as E
 from isaac_lang import ir
 
-from .rotation import cross, quat_to_matrix
+from .rotation import quat_to_matrix
 
 
 @dataclass
@@ -89,61 +88,3 @@ def _loads(scene: ir.Scene) -> Loads | None:
         return None
     return Loads(np.array([index[f.bodies[0]] for f in chosen]), np.array([f.points[0] for f in chosen], float),
                  [f.force for f in chosen], [f.torque for f in chosen])
-
-
-def apply_forces(plan: ForcePlan, x, v, w, R, t, inertia_world, force_out, torque_out) -> None:
-    """force_out, torque_out (n,3) <- the sum of every force stage of the plan at time t."""
-    if plan.weight is not None:
-        force_out[:] = plan.weight
-    else:
-        force_out[:] = 0.0
-    torque_out[:] = 0.0
-    if plan.springs is not None:
-        _apply_springs(plan.springs, x, v, w, R, force_out, torque_out)
-    if plan.loads is not None:
-        _apply_loads(plan.loads, x, R, t, force_out, torque_out)
-    if plan.wind is not None:
-        plan.wind.apply(x, v, w, R, t, force_out, torque_out)
-    if plan.gyroscopic is not None:
-        # every body (no gather) when all of them are gyroscopic
-        k = plan.gyroscopic if len(plan.gyroscopic) < len(w) else slice(None)
-        # tau -= w x (I w)
-        torque_out[k] -= cross(w[k], np.matmul(inertia_world[k], w[k, :, None])[:, :, 0])
-
-
-def _world_point(body, point, x, R):
-    """World position of body points (world points pass through for body -1), and their arms r = R p."""
-    inside = body >= 0
-    safe = np.where(inside, body, 0)
-    arm = np.where(inside[:, None], np.einsum("kij,kj->ki", R[safe], point), 0.0)
-    world = np.where(inside[:, None], x[safe] + arm, point)
-    return world, arm, safe, inside
-
-
-def _apply_springs(s: Springs, x, v, w, R, force_out, torque_out) -> None:
-    pa, ra, a, _ = _world_point(s.body_a, s.point_a, x, R)
-    pb, rb, b, b_inside = _world_point(s.body_b, s.point_b, x, R)
-    d = pb - pa
-    length = np.linalg.norm(d, axis=1)
-    direction = d / np.maximum(length, 1e-12)[:, None]
-    # velocity of each attachment point: v + w x r
-    va = v[a] + cross(w[a], ra)
-    vb = np.where(b_inside[:, None], v[b] + cross(w[b], rb), 0.0)
-    closing = np.einsum("ki,ki->k", vb - va, direction)
-    # F on a = (k (|d| - L0) + c d|d|/dt) d_hat;  b gets -F
-    magnitude = s.stiffness * (length - s.rest) + s.damping * closing
-    f = magnitude[:, None] * direction
-    np.add.at(force_out, a, f)
-    np.add.at(torque_out, a, cross(ra, f))
-    np.add.at(force_out, b[b_inside], -f[b_inside])
-    np.add.at(torque_out, b[b_inside], -cross(rb, f)[b_inside])
-
-
-def _apply_loads(loads: Loads, x, R, t, force_out, torque_out) -> None:
-    env = {"t": t}
-    for k, body in enumerate(loads.body):
-        f = np.asarray(E.evaluate(loads.force[k], env), dtype=float)
-        arm = R[body] @ loads.point[k]
-        force_out[body] += f
-        # a force at a point off the centre of mass also turns the body: tau = r x F
-        torque_out[body] += np.asarray(E.evaluate(loads.torque[k], env), dtype=float) + cross(arm, f)

@@ -39,6 +39,15 @@ class Recorder:
         self.energy[k] = energy
         self.count += 1
 
+    def record_packed(self, y: np.ndarray, constraint_error: float, energy: float) -> None:
+        """One frame from the packed state y (n,13) of the kernels: rows [x q v w]."""
+        k = self.count
+        self.position[k], self.orientation[k] = y[:, 0:3], y[:, 3:7]
+        self.linear_velocity[k], self.angular_velocity[k] = y[:, 7:10], y[:, 10:13]
+        self.constraint_error[k] = constraint_error
+        self.energy[k] = energy
+        self.count += 1
+
     def arrays(self) -> dict:
         """The recorded frames only (a run stopped by a blow-up keeps what it had)."""
         k = self.count

@@ -13,7 +13,7 @@ import numpy as np
 from isaac_lang import expr as E
 from isaac_lang import ir
 
-from .constraint_plan import ConstraintPlan, compile_constraints
+from .constraints.plan import ConstraintPlan, compile_constraints
 from .forces import ForcePlan, compile_forces
 from .kinematics import KinematicPaths, compile_kinematics
 
@@ -90,7 +90,7 @@ class Plan:
             lines.append(f"constraints: {len(c.names)} declared, {c.total_rows} rows ({families})")
             for epoch in c.epochs:
                 lines.append(f"  {epoch.start:g} s .. {epoch.end:g} s: {len(epoch.active)} active rows, "
-                             f"linear solver {epoch.solver if epoch.solver != 'pending' else 'chosen at first use'}")
+                             f"{epoch.solver} Cholesky" if epoch.solver != "none" else "")
         for stage in (self.collisions, self.forces.wind, self.audio):
             if stage is not None and hasattr(stage, "describe"):
                 lines.append(stage.describe())

@@ -48,13 +48,13 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     error = None
     energy0 = sim.energy()
     with _progress(plan, options.progress) as bar:
+        def on_frame(simulation, recorded):
+            bar.update(1)
+            if options.on_frame is not None:
+                options.on_frame(simulation, recorded)
+
         try:
-            for t_frame in plan.frame_times:
-                sim.advance_to(float(t_frame))
-                recorder.record(sim.state, sim.check_constraints(), sim.energy())
-                bar.update(1)
-                if options.on_frame is not None:
-                    options.on_frame(sim, recorder)
+            sim.run_frames(plan.frame_times, recorder, on_frame if options.progress or options.on_frame else None)
         except NumericalError as failure:
             error = failure
     report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
@@ -93,7 +93,7 @@ def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, er
     energy = arrays["energy"]
     scale = _energy_scale(plan)
     warnings = list(plan.warnings)
-    if sim.dynamics.scratch.rank_deficient_seen:
+    if sim.rank_deficient():
         warnings.append("redundant constraints: J M^-1 J^T was singular; solved in the least-squares sense")
     stages = plan.stages()
     return {
@@ -101,7 +101,7 @@ def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, er
         "step_reason": plan.step_reason, "steps": sim.state.steps, "simulated_time": sim.state.t - plan.start,
         "wall_time": wall, "frames": int(len(arrays["time"])),
         "stages_run": [k for k, v in stages.items() if v], "stages_skipped": [k for k, v in stages.items() if not v],
-        "linear_solvers": sorted({e.solver for e in plan.constraints.epochs} - {"pending"}) if plan.constraints else [],
+        "linear_solvers": sorted({e.solver for e in plan.constraints.epochs} - {"none"}) if plan.constraints else [],
         "max_constraint_error": float(np.nanmax(arrays["constraint_error"])) if len(energy) else 0.0,
         "energy_start": energy0,
         "energy_drift": float(np.nanmax(np.abs(energy - energy0))) if len(energy) else 0.0,

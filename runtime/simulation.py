@@ -4,8 +4,10 @@
     sim.advance_to(2.0)
     sim.state.x[sim.body("bob")]
 
-A step never crosses a constraint's switch time: the loop cuts time into segments at frames and switches and
-takes equal steps no longer than the plan's inside each, so a switch happens exactly at its time.
+The steps themselves run in compiled kernels (runtime/core, runtime/dynamics, runtime/procedural), many per call;
+Python runs only between calls: at constraint switches (a step never crosses one: time is cut into pieces at
+switches and frames, and each piece takes equal steps no longer than the plan's), at recorded frames when a
+caller needs them one by one, and after each step while a stage still lives in Python (collisions, observers).
 """
 from __future__ import annotations
 
@@ -15,15 +17,18 @@ from pathlib import Path
 
 import numpy as np
 
-from .dynamics import Dynamics, contiguous_slice
-from .integrate import INTEGRATORS, PACKED, Q, V, W, X, Stages
-from .kinematics import evaluate_paths
+from .core import data as D
+from .core.build import CompiledPlan
+from .core.entries import place_paths, row_errors, state_constraint_error, state_energy
+from .core.jit import CompileNotice
+from .core.record import RUNAWAY_CONSTRAINT_ERROR, Frames
+from .dynamics.integrate import DONE, RUNAWAY_BODY
 from .plan import Plan, PlanOptions, compile_plan
-from .rotation import quat_to_matrix
 
-# what counts as a blow-up: any non-finite number, a speed beyond this, or a constraint error beyond this
-RUNAWAY_SPEED = 1e6  # m/s or rad/s
-RUNAWAY_CONSTRAINT_ERROR = 1.0  # m (or rad): a joint this far apart is not a joint any more
+# compatibility name for callers of the step loop
+RUNAWAY_SPEED = 1e6
+# a run that hands its frames to a caller one by one (watch, live) steps at most this many steps per kernel call
+ON_FRAME_STEPS = 2000
 
 
 class NumericalError(Exception):
@@ -38,8 +43,8 @@ class NumericalError(Exception):
 class State:
     """The mutable part: time and the struct-of-arrays state of every body.
 
-    x, q, v, w are views of y, each body's state packed in one row (integrate.py's layout), which the integrator
-    loads and advances in one numpy call each; write them in place (x[...] = ...), never rebind them."""
+    x, q, v, w are views of y (n+1, 13), each body's state packed in one row [x q v w] and the last row the world,
+    which the kernels advance in place; write them in place (x[...] = ...), never rebind them."""
 
     t: float
     x: np.ndarray  # (n,3) centre of mass, m
@@ -47,24 +52,22 @@ class State:
     v: np.ndarray  # (n,3) m/s
     w: np.ndarray  # (n,3) world angular velocity, rad/s
     steps: int = 0
-    y: np.ndarray | None = None  # (n,13) rows [x q v w]; None for a State built from separate arrays
+    y: np.ndarray | None = None  # (n+1,13)
 
     @classmethod
     def initial(cls, plan: Plan) -> "State":
-        y = np.empty((plan.n, PACKED))
-        y[:, X], y[:, Q], y[:, V], y[:, W] = plan.x0, plan.q0, plan.v0, plan.w0
-        return cls(plan.start, y[:, X], y[:, Q], y[:, V], y[:, W], y=y)
-
-    def integrated(self):
-        """What the integrators take: the packed array, or the tuple (x, q, v, w)."""
-        return self.y if self.y is not None else (self.x, self.q, self.v, self.w)
+        y = D.initial_state(plan)
+        n = plan.n
+        return cls(plan.start, y[:n, D.X], y[:n, D.Q], y[:n, D.V], y[:n, D.W], y=y)
 
 
-def _equal_moments(inertia_body: np.ndarray) -> np.ndarray | None:
-    """The moments (k,) of bodies whose inertia tensors (k,3,3) are each a multiple of the identity (spheres,
-    cubes), or None if one of them is not."""
-    moments = inertia_body[:, 0, 0]
-    return moments if np.array_equal(inertia_body, moments[:, None, None] * np.eye(3)) else None
+class _FrameSink:
+    """Where a run of frames goes: the Recorder (or nothing), and the frame times still to record."""
+
+    def __init__(self, times, recorder, on_frame):
+        self.times = np.asarray(times, float)
+        self.recorder, self.on_frame = recorder, on_frame
+        self.next = 0
 
 
 class Simulation:
@@ -73,27 +76,30 @@ class Simulation:
         self.state = State.initial(plan)
         self.source = source or {}
         self.events: list = []
-        self.dynamics = Dynamics(plan)
-        self.procedural = None
-        if plan.solver == "procedural":
-            from .procedural_plan import ProceduralStepper
-
-            self.procedural = ProceduralStepper(plan, self.dynamics)
-        self._integrate = INTEGRATORS.get(plan.integrator)  # None for the procedural plan: it integrates itself
-        self._stages = Stages(plan.n)
-        self._a = np.zeros((plan.n, 3))
-        self._alpha = np.zeros((plan.n, 3))
+        self._compile_notice = CompileNotice.begin(row_errors, state_energy, state_constraint_error, place_paths,
+                                                   *self._stepper_class(plan).entries)
+        self.compiled = CompiledPlan(plan)
+        self.stepper = self._stepper_class(plan)(self.compiled, plan)
         self._switches = np.array(plan.constraints.switch_times() if plan.constraints else [])
-        self._dynamic = contiguous_slice(np.flatnonzero(plan.dynamic))  # slice, or indices, of the dynamic bodies
-        self._positions: dict[int, tuple] = {}  # id(epoch) -> (epoch, its active rows with a position-level C)
-        self._moments = _equal_moments(plan.inertia_body[self._dynamic])
+        self._act = None  # the Active rows of the epoch the state is in
+        self._status = np.zeros(3, np.int64)
         # collisions: detection and impulses after every step (runtime.collide), built only when the plan has them
         self.collider = plan.collisions.start(self) if plan.collisions is not None else None
         # observers called after every step, e.g. the audio stage recording motion signals
         self.observers: list = []
-        self._sync_kinematics()
+        self._place_kinematic()
 
     # -- construction -------------------------------------------------------------------------------------
+
+    @staticmethod
+    def _stepper_class(plan):
+        if plan.solver == "procedural":
+            from .procedural import ProceduralStepper
+
+            return ProceduralStepper
+        from .dynamics import DynamicsStepper
+
+        return DynamicsStepper
 
     @classmethod
     def from_file(cls, path, overrides: dict | None = None, **options) -> "Simulation":
@@ -101,8 +107,7 @@ class Simulation:
 
         scene = load_scene(Path(path), overrides).scene
         plan = compile_plan(scene, PlanOptions(folder=Path(path).parent, **options))
-        return cls(plan, {"path": Path(path), "overrides": overrides or {},
-                                                                  "options": options})
+        return cls(plan, {"path": Path(path), "overrides": overrides or {}, "options": options})
 
     @classmethod
     def from_text(cls, text: str, overrides: dict | None = None, folder=".", **options) -> "Simulation":
@@ -110,8 +115,7 @@ class Simulation:
 
         scene = load_text(text, overrides=overrides, folder=folder).scene
         plan = compile_plan(scene, PlanOptions(folder=Path(folder), **options))
-        return cls(plan, {"text": text, "folder": folder,
-                                                                  "overrides": overrides or {}, "options": options})
+        return cls(plan, {"text": text, "folder": folder, "overrides": overrides or {}, "options": options})
 
     # -- queries ------------------------------------------------------------------------------------------
 
@@ -120,41 +124,28 @@ class Simulation:
 
     def energy(self) -> float:
         """Kinetic plus gravitational potential energy of the dynamic bodies, J."""
-        plan, s, d = self.plan, self.state, self._dynamic
-        mass, v, w = plan.mass[d], s.v[d], s.w[d]
-        if self._moments is not None:
-            # I = R (I_b 1) R^T = I_b 1 for bodies whose inertia is the same about every axis: w . I w = I_b |w|^2
-            spin = self._moments.dot(np.vecdot(w, w))
-        else:
-            # the body-frame angular velocity u = R^T w: w . I w = w . R I_b R^T w = u . I_b u
-            u = np.matmul(w[:, None, :], quat_to_matrix(s.q[d]))[:, 0]
-            spin = np.add.reduce(np.vecdot(u, np.matmul(plan.inertia_body[d], u[:, :, None])[:, :, 0]))
-        # E = sum 1/2 m v^2 + 1/2 w . I w - m g . x
-        kinetic = 0.5 * (mass.dot(np.vecdot(v, v)) + spin)
-        potential = -mass.dot(s.x[d].dot(plan.gravity))
-        return float(kinetic + potential)
+        c = self.compiled
+        return float(state_energy(c.model.bodies, c.scratch.R, self.state.y))
 
     def constraint_errors(self) -> tuple:
-        """(max |C| over active position rows, index of that row or -1) at the current state."""
-        c = self.plan.constraints
-        if c is None:
+        """(max |C| over active position rows, global index of that row or -1) at the current state."""
+        if self.plan.constraints is None:
             return 0.0, -1
-        s = self.state
-        positions = self._position_rows(c.epoch_at(s.t))
-        if not positions.size:
-            return 0.0, -1
-        block = self.dynamics.positions_at(self.dynamics.frame(s.x, s.q, s.v, s.w, s.t))
-        errors = np.abs(block.C[positions])
-        worst = int(np.argmax(errors))
-        return float(errors[worst]), int(positions[worst])
+        act = self._active()
+        c, s = self.compiled, self.state
+        error, row = state_constraint_error(c.model, act, c.scratch, s.y, c.table.evaluate(s.t, 0.0, 1))
+        return float(error), int(row)
 
-    def _position_rows(self, epoch) -> np.ndarray:
-        """The epoch's active rows that have a position-level C (not velocity-only), found once per epoch."""
-        entry = self._positions.get(id(epoch))
-        if entry is None or entry[0] is not epoch:
-            velocity_only = self.dynamics.scratch.rows.velocity_only  # structure: written once, with the rows
-            entry = self._positions[id(epoch)] = (epoch, epoch.active[~velocity_only[epoch.active]])
-        return entry[1]
+    def check_constraints(self) -> float:
+        """Constraint error now; a runaway error stops the run naming the constraint."""
+        error, row = self.constraint_errors()
+        if not np.isfinite(error) or error > RUNAWAY_CONSTRAINT_ERROR:
+            raise self._constraint_failure(row, error)
+        return error
+
+    def rank_deficient(self) -> bool:
+        """Whether a solve found redundant constraints (J M^-1 J^T singular) so far."""
+        return bool(self.compiled.scratch.counters[D.COUNTER_RANK])
 
     # -- live inputs --------------------------------------------------------------------------------------
 
@@ -166,7 +157,7 @@ class Simulation:
             raise ValueError(f"body `{name}` is not kinematic; declare it `kinematic` to drive it")
         quat = np.asarray(orientation, float)
         paths.overrides[index] = (np.asarray(position, float), quat / np.linalg.norm(quat))
-        self._sync_kinematics()
+        self._place_kinematic()
 
     def release_pose(self, name: str) -> None:
         self.plan.kinematics.overrides.pop(self.body(name), None)
@@ -182,9 +173,7 @@ class Simulation:
         old = {n: i for i, n in enumerate(self.plan.names)}
         for j, body in enumerate(fresh.plan.names):
             if body in old and fresh.plan.dynamic[j]:
-                i = old[body]
-                for array in ("x", "q", "v", "w"):
-                    getattr(fresh.state, array)[j] = getattr(self.state, array)[i]
+                fresh.state.y[j] = self.state.y[old[body]]
         fresh.state.t, fresh.state.steps = self.state.t, self.state.steps
         self.__dict__.update(fresh.__dict__)
 
@@ -192,63 +181,181 @@ class Simulation:
 
     def advance_to(self, t_target: float) -> None:
         """Step until time t_target, landing exactly on every constraint switch on the way."""
-        s = self.state
-        while s.t < t_target - 1e-12:
-            ahead = self._switches[self._switches > s.t + 1e-12]
-            boundary = min(t_target, float(ahead[0])) if ahead.size else t_target
-            count = max(1, math.ceil((boundary - s.t) / self.plan.step - 1e-9))
-            h = (boundary - s.t) / count
-            epoch = self.plan.constraints.epoch_at(s.t + 0.5 * h) if self.plan.constraints else None
-            for _ in range(count):
-                self._step(h, epoch)
-            s.t = boundary  # no drift from summing h
+        self._advance(t_target, None)
 
     def step(self, h: float | None = None) -> None:
         """One step of the plan's size (or h), not crossing a switch."""
         self.advance_to(self.state.t + (h or self.plan.step))
 
-    def _step(self, h: float, epoch) -> None:
+    def integrate(self, tau: float) -> None:
+        """One step of length tau from the live state at its time, with the plan's own step (the collision stage
+        re-runs part of a step with it); the time and step count are the caller's to update."""
         s = self.state
+        taken = self.stepper.run(self._active(), s.y, s.t, tau, 1, np.zeros(0, np.int64), self._frame_buffer(0),
+                                 self._status)
+        if self._status[0] != DONE:
+            s.t += taken * tau
+            raise self._failure()
+
+    def joint_rows(self, rows: np.ndarray, t: float) -> tuple:
+        """(J (m,2,6), ct (m,)) of the given global constraint rows at the live state and time t."""
+        c = self.compiled
+        cons = c.model.constraints
+        instances = np.unique(cons.row_instance[rows])
+        row_errors(c.model, instances, c.scratch, self.state.y, c.table.evaluate(t, 0.0, 1))
+        return c.scratch.J[rows].copy(), c.scratch.ct[rows].copy()
+
+    def run_frames(self, frame_times, recorder, on_frame=None) -> None:
+        """Advance to the last of frame_times, recording every one of them into `recorder` (the kernels record;
+        with on_frame, each frame is also handed to on_frame(simulation, recorder) as it is recorded)."""
+        sink = _FrameSink(frame_times, recorder, on_frame)
+        if len(sink.times):
+            self._advance(float(sink.times[-1]), sink)
+
+    def _advance(self, t_target: float, sink) -> None:
+        s = self.state
+        while True:
+            act = self._active()
+            # a frame at the start, or at a switch: recorded here, in the epoch that begins
+            if sink is not None and sink.next < len(sink.times) and sink.times[sink.next] <= s.t + 1e-12:
+                self._record_now(sink)
+            if s.t >= t_target - 1e-12:
+                break
+            ahead = self._switches[self._switches > s.t + 1e-12]
+            boundary = min(t_target, float(ahead[0])) if ahead.size else t_target
+            cuts = [(boundary, False)] if sink is None else self._cuts(sink, boundary, boundary < t_target - 1e-12)
+            self._run_pieces(act, cuts, sink)
+            s.t = boundary  # no drift from summing h
+
+    def _cuts(self, sink, boundary: float, switch: bool) -> list:
+        """[(time, is a frame)]: the frame times up to the boundary (not one on a switch: that one belongs to the
+        next epoch), then the boundary."""
+        frames = sink.times[sink.next:]
+        frames = frames[frames <= boundary + (-1e-12 if switch else 1e-12)]
+        cuts = [(float(t), True) for t in frames]
+        if not cuts or cuts[-1][0] < boundary - 1e-12:
+            cuts.append((boundary, False))
+        return cuts
+
+    def _run_pieces(self, act, cuts: list, sink) -> None:
+        """Step through the cut points [(time, is a frame)]: consecutive intervals with the same number and length
+        of steps go to the kernel in one call, which records the frames among them."""
+        s, h = self.state, self.plan.step
+        i = 0
+        per_call = self.compiled.table.steps_per_call(self.stepper.grid)
+        if sink is not None and sink.on_frame is not None:
+            per_call = min(per_call, ON_FRAME_STEPS)  # the caller hears of the frames (and can stop) every so often
+        if self.collider is not None or self.observers:
+            per_call = 1  # stages still in Python need the state after every step
+        while i < len(cuts):
+            span = cuts[i][0] - s.t
+            count = max(1, math.ceil(span / h - 1e-9))
+            h_piece = span / count
+            intervals = 1
+            while (i + intervals < len(cuts) and count * intervals < per_call
+                   and abs((cuts[i + intervals][0] - cuts[i + intervals - 1][0]) / count - h_piece)
+                   <= 1e-12 * h_piece):
+                intervals += 1
+            piece = cuts[i:i + intervals]
+            self._run_steps(act, h_piece, count, [frame for _, frame in piece], sink, per_call)
+            s.t = piece[-1][0]
+            i += intervals
+
+    def _run_steps(self, act, h: float, count: int, is_frame: list, sink, per_call: int) -> None:
+        """count steps of h per interval, over the intervals whose ends are frames or not (is_frame), recording
+        the frames among them (in the kernel; or here, after the stages that still run in Python)."""
+        s = self.state
+        total = count * len(is_frame)
+        frame_ends = {(k + 1) * count for k in range(len(is_frame)) if is_frame[k]}
+        in_python = self.collider is not None or bool(self.observers)
+        done = 0
+        t0 = s.t
+        while done < total:
+            steps = min(per_call, total - done)
+            frame_step = np.array(sorted(end - done for end in frame_ends if done < end <= done + steps and
+                                         not in_python), np.int64)
+            frames = self._frame_buffer(len(frame_step))
+            if self.collider is not None:
+                self.collider.before_step(h, self._epoch())
+            taken = self.stepper.run(act, s.y, t0 + done * h, h, steps, frame_step, frames, self._status)
+            self._compile_notice.end()
+            done += taken
+            s.steps += taken
+            s.t = t0 + done * h
+            self._deliver(frames, frame_step, taken, sink)
+            if self._status[0] != DONE:
+                raise self._failure()
+            if in_python:
+                self._after_step(h, act)
+                if done in frame_ends and sink is not None:
+                    self._record_now(sink)
+
+    def _epoch(self, t: float | None = None):
+        c = self.plan.constraints
+        return c.epoch_at(self.state.t if t is None else t) if c is not None else None
+
+    def _after_step(self, h: float, act) -> None:
         if self.collider is not None:
-            self.collider.before_step(h, epoch)
-        if self.procedural is not None:
-            self.procedural.step(s, h, epoch)
-        else:
-            self._integrate(self.dynamics.accelerations, s.t, h, s.integrated(), self._stages, epoch)
-        s.t += h
-        s.steps += 1
-        self._sync_kinematics()
-        if self.collider is not None:
-            self.collider.after_step(h, epoch)
-        self._check_finite()
+            self.collider.after_step(h, self._epoch(self.state.t - 0.5 * h))
         for observe in self.observers:
             observe(self, h)
 
-    def _sync_kinematics(self) -> None:
-        if self.plan.kinematics is not None:
-            s = self.state
-            evaluate_paths(self.plan.kinematics, s.t, s.x, s.q, s.v, s.w)
+    # -- frames ---------------------------------------------------------------------------------------------
 
-    def _check_finite(self) -> None:
-        s = self.state
-        # the largest |entry| of each state column, by one reduction (a NaN anywhere in a column gives NaN): every
-        # position finite, and every |v| and |w| component below RUNAWAY_SPEED (NaN fails the comparison)
-        packed = s.y if s.y is not None else np.concatenate((s.x, s.q, s.v, s.w), axis=1)
-        largest = np.maximum.reduce(np.abs(packed), axis=0, initial=0.0).tolist()
-        if all(c < RUNAWAY_SPEED for c in largest[V.start:]) and all(math.isfinite(c) for c in largest[X]):
+    def _frame_buffer(self, count: int) -> Frames:
+        n1 = self.plan.n + 1
+        return Frames(np.zeros((count, n1, D.PACKED)), np.zeros(count), np.zeros(count), np.zeros(count, np.int64))
+
+    def _deliver(self, frames: Frames, frame_step, taken: int, sink) -> None:
+        if sink is None:
             return
-        speed = max(np.abs(s.v).max(initial=0.0), np.abs(s.w).max(initial=0.0))
-        bad = ~(np.isfinite(s.x).all(axis=1) & np.isfinite(s.v).all(axis=1) & np.isfinite(s.w).all(axis=1))
-        bad |= np.maximum(np.abs(s.v).max(axis=1), np.abs(s.w).max(axis=1)) >= RUNAWAY_SPEED
-        name = self.plan.names[int(np.flatnonzero(bad)[0])] if bad.any() else "?"
-        raise NumericalError(s.t, s.steps, f"body `{name}`", "its velocity is no longer finite"
-                             if not np.isfinite(speed) else f"its speed passed {RUNAWAY_SPEED:g}")
+        n = self.plan.n
+        for f in range(len(frame_step)):
+            if frame_step[f] > taken:
+                break
+            if sink.recorder is not None:
+                sink.recorder.record_packed(frames.y[f, :n], float(frames.error[f]), float(frames.energy[f]))
+            sink.next += 1
+            if sink.on_frame is not None:
+                sink.on_frame(self, sink.recorder)
 
-    def check_constraints(self) -> float:
-        """Constraint error now; a runaway error stops the run naming the constraint."""
-        error, row = self.constraint_errors()
-        if not np.isfinite(error) or error > RUNAWAY_CONSTRAINT_ERROR:
-            name = self.plan.constraints.names[self.plan.constraints.row_constraint[row]] if row >= 0 else "?"
-            raise NumericalError(self.state.t, self.state.steps, f"constraint `{name}`",
-                                 f"its error grew to {error:.3g} (m or rad)")
-        return error
+    def _record_now(self, sink) -> None:
+        if sink.recorder is not None:
+            sink.recorder.record(self.state, self.check_constraints(), self.energy())
+        sink.next += 1
+        if sink.on_frame is not None:
+            sink.on_frame(self, sink.recorder)
+
+    # -- epochs and failures ----------------------------------------------------------------------------------
+
+    def _active(self):
+        c = self.plan.constraints
+        epoch = c.epoch_at(self.state.t + 1e-12) if c is not None else None
+        act = self.compiled.active(epoch, self.state.y, self.state.t)
+        if act is not self._act:
+            if self._act is not None:
+                self.compiled.leave(self._act)
+            self._act = act
+            self.stepper.enter(act, self.state.y, self.state.t)
+        return act
+
+    def _place_kinematic(self) -> None:
+        if self.plan.kinematics is not None:
+            table = self.compiled.table.evaluate(self.state.t, 0.0, 1)
+            place_paths(self.compiled.model.kinematic, table, self.state.y)
+
+    def _failure(self) -> NumericalError:
+        code, step, which = (int(v) for v in self._status)
+        s = self.state
+        if code == RUNAWAY_BODY:
+            y = s.y[which]
+            detail = ("its velocity is no longer finite" if not np.all(np.isfinite(y))
+                      else f"its speed passed {RUNAWAY_SPEED:g}")
+            return NumericalError(s.t, s.steps, f"body `{self.plan.names[which]}`", detail)
+        error, _ = self.constraint_errors()
+        return self._constraint_failure(which, error)
+
+    def _constraint_failure(self, row: int, error: float) -> NumericalError:
+        name = self.plan.constraints.names[self.plan.constraints.row_constraint[row]] if row >= 0 else "?"
+        return NumericalError(self.state.t, self.state.steps, f"constraint `{name}`",
+                              f"its error grew to {error:.3g} (m or rad)")

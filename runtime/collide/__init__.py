@@ -11,7 +11,6 @@ The package, one stage per file:
     response.py   impulses solved with the joint rows, impacts in generations, friction, position correction
     lcp.py        the contact problem (direct solve, then projected Gauss-Seidel)
     collider.py   the stage of the dynamics plan: scan, time of impact, resolve
-    procedural.py the stage of the procedural plan (the same, re-running its own step to locate impacts)
     events.py     contact events for events.json and the audio graph
 docs/collisions.md says how it behaves and where its limits are.
 """
@@ -55,10 +54,6 @@ class CollisionPlan:
     kinds: dict
 
     def start(self, simulation):
-        if simulation.procedural is not None:
-            from .procedural import ProceduralCollider
-
-            return ProceduralCollider(self, simulation)
         from .collider import Collider
 
         return Collider(self, simulation)

@@ -1,5 +1,5 @@
 """The collision stage of one run: after every step, find the contacts, locate impacts in time, and apply the
-impulses. The procedural plan's stage (procedural.py) is this one with the procedural step for integrator.
+impulses. Both plans use it: re-integrating part of a step is the simulation's `integrate` (the plan's own step).
 
     before_step: remember the state at the start of the step
     after_step:  scan      contacts at the end of the step (broad phase on boxes swept over the step)
@@ -25,8 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..integrate import INTEGRATORS, Stages
-from ..kinematics import evaluate_paths
 from ..rotation import quat_to_matrix, world_inverse_inertia
 from .events import EventLog
 from .narrow import closed_form
@@ -71,11 +69,9 @@ class Collider:
 
             self.fcl = FclPairs(cplan.table, cplan.fcl_bodies)
         self.log = EventLog(self.plan.names, sim.events, self.plan.frame_times)
-        self.stages = Stages(n)
         self.gravity = float(np.linalg.norm(self.plan.gravity))  # |g|, m/s2
         self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * self.plan.step)
         self.stats = {"impacts located": 0, "tunnelling caught": 0}
-        self.first_slope = FirstSlope(n, reuse=self.plan.kinematics is None)
 
     # -- the hooks of the step loop -------------------------------------------------------------------------
 
@@ -84,7 +80,6 @@ class Collider:
         for buffer, array in zip(self.saved, (s.x, s.q, s.v, s.w)):
             buffer[...] = array
         self.t_saved = s.t
-        self.first_slope.forget()
 
     def after_step(self, h: float, epoch) -> None:
         s = self.sim.state
@@ -242,32 +237,16 @@ class Collider:
         for array, buffer in zip((s.x, s.q, s.v, s.w), self.saved):
             array[...] = buffer
         s.t = self.t_saved
-        self.first_slope.expect()
         self._advance(tau, epoch)
         s.t = self.t_saved + tau
         return self.distance(pair[0], pair[1], s.x, quat_to_matrix(s.q))
 
     def _advance(self, tau: float, epoch) -> None:
-        """Integrate the live state from its time s.t to s.t + tau with the plan's integrator."""
+        """Integrate the live state from its time s.t to s.t + tau with the plan's own step."""
         s = self.sim.state
         if tau > 0:
-            self._integrate(tau, epoch)
+            self.sim.integrate(tau)
         s.t += tau
-        if self.plan.kinematics is not None:
-            evaluate_paths(self.plan.kinematics, s.t, s.x, s.q, s.v, s.w)
-
-    def _integrate(self, tau: float, epoch) -> None:
-        s = self.sim.state
-        INTEGRATORS[self.plan.integrator](self._accelerations, s.t, tau, (s.x, s.q, s.v, s.w), self.stages, epoch)
-
-    def _accelerations(self, t, x, q, v, w, a, alpha, epoch) -> None:
-        """The dynamics' accelerations (the integrator's slopes). Every trial of the time-of-impact search
-        starts from the saved start of the step, so its first slope is the same each time: the dynamics
-        compute it for the first trial, the later ones copy it (FirstSlope)."""
-        if self.first_slope.copy_into(t, a, alpha):
-            return
-        self.sim.dynamics.accelerations(t, x, q, v, w, a, alpha, epoch)
-        self.first_slope.keep(t, a, alpha)
 
     # -- response ---------------------------------------------------------------------------------------------
 
@@ -314,10 +293,8 @@ class Collider:
         c = self.plan.constraints
         if c is None or epoch is None or not epoch.active.size:
             return Joints.none()
-        s = self.sim.state
-        block = self.sim.dynamics.rows_at(self.sim.dynamics.frame(s.x, s.q, s.v, s.w, t))
-        active = epoch.active
-        return Joints(block.J[active].copy(), c.row_bodies[active], block.ct[active].copy())
+        J, ct = self.sim.joint_rows(epoch.active, t)
+        return Joints(J, c.row_bodies[epoch.active], ct)
 
     def _impact_time(self, scan, contacts, t, rewound):
         """Time of an impact: t itself when located; else interpolated on the pair's distance between the start
@@ -335,45 +312,6 @@ class Collider:
             return self.t_saved + (t - self.t_saved) * d0 / (d0 + depth)
 
         return interpolated
-
-
-class FirstSlope:
-    """The accelerations at the saved start of the step (scratch of the time-of-impact search).
-
-    A trial integrates from the saved state at the saved time (_distance_at), and the accelerations are a
-    function of (t, x, q, v, w, epoch) alone: the first slope of every trial of one step is the same, bit for
-    bit, and the first trial's is kept for the others. Not with kinematic bodies: the dynamics also put them on
-    their paths at t, which the saved state may hold one rounding apart (a step ending on a frame has its time
-    set to the frame's)."""
-
-    def __init__(self, n: int, reuse: bool):
-        self.reuse = reuse
-        self.a, self.alpha = np.zeros((n, 3)), np.zeros((n, 3))
-        self.t = math.nan  # the time of a, alpha
-        self.known = False  # a, alpha hold the slope at the saved start
-        self.expected = False  # the next call of the dynamics is a trial's first, at the saved start
-
-    def forget(self) -> None:
-        """A new start of the step was saved."""
-        self.known = self.expected = False
-
-    def expect(self) -> None:
-        """A trial is about to integrate from the saved start."""
-        self.expected = self.reuse
-
-    def copy_into(self, t: float, a, alpha) -> bool:
-        """If this is a trial's first call (at time t) and its slope is known, a, alpha <- it and True."""
-        if not (self.expected and self.known and t == self.t):
-            return False
-        a[...], alpha[...] = self.a, self.alpha
-        self.expected = False
-        return True
-
-    def keep(self, t: float, a, alpha) -> None:
-        """After the dynamics computed a slope at time t: keep it if it was a trial's first."""
-        if self.expected:
-            self.a[...], self.alpha[...], self.t = a, alpha, t
-            self.known, self.expected = True, False
 
 
 @dataclass

@@ -95,7 +95,9 @@ def status(url: str) -> dict:
 def session(tmp_path):
     (tmp_path / "angles.isaac").write_text("let theta0 = 60 deg\n")
     scene = tmp_path / "pendulum.isaac"
-    scene.write_text(PENDULUM.replace("let theta0 = 60 deg", 'include "angles.isaac"'))
+    # long enough (3000 s: about ten seconds of stepping) that a result is still running when the next save comes
+    scene.write_text(PENDULUM.replace("let theta0 = 60 deg", 'include "angles.isaac"')
+                     .replace("time 0 s .. 10 s", "time 0 s .. 3000 s").replace("frames 100 Hz", "frames 5 Hz"))
     watch = Session(scene, "--out", str(tmp_path / "out"), "--port", "0")
     yield watch
     watch.stop()

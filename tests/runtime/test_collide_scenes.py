@@ -241,22 +241,6 @@ def test_chimes_strikes_are_the_same_with_and_without_the_room(monkeypatch):
     assert np.array_equal(with_room.simulation.state.x, every_step.simulation.state.x)
 
 
-@pytest.mark.parametrize("name,until", [("cradle", 1.2), ("chimes", 1.5)])
-def test_impacts_are_located_the_same_with_the_first_slope_kept(monkeypatch, name, until):
-    """The time-of-impact search copies the first slope of its trials after the first (collider.FirstSlope):
-    events and state to the last bit as when the dynamics compute it every time."""
-    from isaac_runtime.collide import collider
-
-    scene = load_scene(SCENES / f"{name}.isaac").scene
-    kept = simulate(scene, RunOptions(until=until))
-    assert kept.simulation.collider.stats["impacts located"] >= 1
-    monkeypatch.setattr(collider.FirstSlope, "copy_into", lambda self, t, a, alpha: False)
-    computed = simulate(scene, RunOptions(until=until))
-    assert kept.simulation.events == computed.simulation.events
-    for array in ("x", "q", "v", "w"):
-        assert np.array_equal(getattr(kept.simulation.state, array), getattr(computed.simulation.state, array))
-
-
 # ---- meshes ----------------------------------------------------------------------------------------------------
 
 # the icosahedron's first face turned down, then tilted by 4 degrees

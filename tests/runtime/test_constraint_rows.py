@@ -1,4 +1,4 @@
-"""Constraint rows: the vectorized kernels against the scalar reference, and both against calculus.
+"""Constraint rows: the compiled kernels (runtime/core/rows.py) against the scalar reference, and against calculus.
 
 Every check compares with an independently computed quantity: the scalar oracle (rows_reference.py, which
 computes bias as Jdot v rather than d2C/dt2), finite differences of C along free motion, and known rotations.
@@ -18,16 +18,8 @@ from isaac_runtime.constraints.layout import (
     PointOnPlane,
     PointToNail,
     PointToPoint,
-    RowBlock,
 )
-from isaac_runtime.constraints.rows import (
-    WorldPaddedFrame,
-    capture_element_references,
-    pad_world,
-    row_count,
-    write_rows,
-)
-from isaac_runtime.constraints.rows_reference import reference_rows
+from isaac_runtime.constraints.plan import capture_element_references, row_count
 from isaac_runtime.rotation import (
     quat_from_axis_angle,
     quat_integrate,
@@ -36,6 +28,9 @@ from isaac_runtime.rotation import (
     quat_rotate,
     quat_to_matrix,
 )
+
+from .core_helpers import model_of, packed_state, rows_at
+from .rows_reference import reference_rows
 
 N_BODIES = 5  # bodies in every random scene
 K = 6  # instances per family; the first two are referenced to the WORLD
@@ -123,9 +118,8 @@ def _scene(name, seed=0):
 
 
 def _rows(fam, frame):
-    out = RowBlock.empty(row_count(fam))
-    write_rows(fam, frame, out, 0)
-    return out
+    """The compiled rows of the family's instances at the frame."""
+    return rows_at(model_of([fam], len(frame.x)), packed_state(frame.x, frame.q, frame.v, frame.w), frame.t)
 
 
 def _apply_J(out, v, w):
@@ -142,37 +136,17 @@ def _assert_close(actual, expected, rel):
 
 @pytest.mark.parametrize("name", FAMILIES)
 @pytest.mark.parametrize("seed", [0, 1])
-def test_vectorized_matches_reference(name, seed):
+def test_compiled_rows_match_the_reference(name, seed):
     fam, frame, _ = _scene(name, seed)
-    start, m = 3, row_count(fam)
-    out = RowBlock.empty(start + m + 2)
-    out.C[:], out.ct[:], out.bias[:], out.J[:] = 7.0, 7.0, 7.0, 7.0
-    assert write_rows(fam, frame, out, start) == m == type(fam).ROWS * K
+    out = _rows(fam, frame)
+    assert len(out.C) == row_count(fam) == type(fam).ROWS * K
     ref = reference_rows(fam, frame)
-    rows = slice(start, start + m)
     for key in ("C", "J", "ct", "bias"):
-        np.testing.assert_allclose(getattr(out, key)[rows], ref[key], rtol=0, atol=1e-12, err_msg=key)
-    np.testing.assert_array_equal(out.row_bodies[rows], ref["row_bodies"])
-    np.testing.assert_array_equal(out.velocity_only[rows], ref["velocity_only"])
-    assert (out.row_bodies[rows] == WORLD).any(), "the scene must exercise WORLD slots"
-    assert np.all(out.J[rows][out.row_bodies[rows] == WORLD] == 0.0)
-    # rows outside [start, start + m) are untouched
-    assert np.all(out.C[:start] == 7.0) and np.all(out.C[start + m:] == 7.0)
-    assert np.all(out.J[:start] == 7.0) and np.all(out.J[start + m:] == 7.0)
-
-
-@pytest.mark.parametrize("name", FAMILIES)
-def test_world_padded_frame_gives_the_same_rows(name):
-    """The runtime hands the kernels frames with a world row appended (index WORLD = -1 reads it); a plain
-    frame is padded on entry. Both give the same rows, bit for bit."""
-    fam, frame, _ = _scene(name, 5)
-    padded = pad_world(frame)
-    assert isinstance(padded, WorldPaddedFrame) and pad_world(padded) is padded
-    assert len(padded.x) == N_BODIES + 1 and np.array_equal(padded.R[-1], np.eye(3))
-    assert np.array_equal(padded.q[-1], [1.0, 0.0, 0.0, 0.0]) and not padded.v[-1].any() and not padded.w[-1].any()
-    plain, fast = _rows(fam, frame), _rows(fam, padded)
-    for key in ("C", "J", "ct", "bias", "row_bodies", "velocity_only"):
-        np.testing.assert_array_equal(getattr(fast, key), getattr(plain, key), err_msg=key)
+        np.testing.assert_allclose(getattr(out, key), ref[key], rtol=0, atol=1e-12, err_msg=key)
+    np.testing.assert_array_equal(out.row_bodies, ref["row_bodies"])
+    np.testing.assert_array_equal(out.velocity_only, ref["velocity_only"])
+    assert (out.row_bodies == WORLD).any(), "the scene must exercise WORLD slots"
+    assert np.all(out.J[out.row_bodies == WORLD] == 0.0)
 
 
 def _gradient_error(name, J_hook=None):
@@ -312,8 +286,3 @@ def test_element_C_ignores_motion_of_a_and_b_together():
     body_rows = fam.body_b == 0
     np.testing.assert_allclose(C[body_rows], 0.0, atol=1e-12)
     assert np.max(np.abs(C[~body_rows])) > 0.1  # the world-referenced rows do see it
-
-
-def test_write_rows_rejects_what_is_not_a_family():
-    with pytest.raises(TypeError, match="fam"):
-        write_rows(object(), None, RowBlock.empty(1), 0)

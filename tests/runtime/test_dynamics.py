@@ -111,10 +111,11 @@ def test_weld_minus_rz_leaves_only_the_turn_about_z():
   constraint hinge weld(rod, post) - rz"""
     arrays, _ = run(scene(body, time="1 s"))
     w = arrays["angular_velocity"][:, 1]
-    # the x and y spin are removed by the rows at once (they start violated), then stay zero
-    assert np.max(np.abs(w[5:, :2])) < 1e-6
+    # the x and y spin start violating the rows: they are removed as the rows assemble (critically damped at the
+    # default 10 Hz: (1 + w t) exp(-w t) is 1e-12 by 0.5 s), then stay zero
+    assert np.max(np.abs(w[50:, :2])) < 1e-9
     assert np.max(np.abs(arrays["position"][:, 1] - [0.5, 0, 0])) < 1e-6
-    assert np.all(np.abs(w[5:, 2]) > 2.0)
+    assert np.all(np.abs(w[50:, 2]) > 2.0)
 
 
 def test_redundant_rows_stay_finite_and_are_reported():
@@ -145,7 +146,7 @@ def test_switch_lands_exactly_on_the_time():
 def test_blow_up_names_time_step_and_culprit():
     text = scene("""
   body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) }
-  constraint hang nail(bob @ (-1, 0, 0), (0, 0, 0))""", step="20 ms", time="5 s", extra="stabilize 200 Hz")
+  constraint hang nail(bob @ (-0.9, 0, 0), (0, 0, 0))""", step="20 ms", time="5 s", extra="stabilize 200 Hz")
     result = simulate(load_text(text).scene)
     assert result.error is not None
     message = str(result.error)

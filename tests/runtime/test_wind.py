@@ -62,17 +62,25 @@ def test_falling_sphere_reaches_terminal_velocity(solver):
 
 def fall_with_forces(plan, h: float, steps: int) -> np.ndarray:
     """Velocities of the first body stepped as the procedural plan's prediction does: v += h F / m, forces once
-    per step (the wind stage's own model decides F)."""
-    from isaac_runtime.forces import apply_forces
+    per step (the wind stage's own model decides F: the compiled kernels wind_relax or wind_drag)."""
+    from isaac_runtime.core.data import initial_state
+    from isaac_runtime.wind import kernels as K
 
-    x, v, w = plan.x0.copy(), plan.v0.copy(), plan.w0.copy()
-    R = quat_to_matrix(plan.q0)
-    force, torque, out = np.zeros_like(x), np.zeros_like(x), []
+    wind = plan.forces.wind
+    wm, y = K.wind_model(wind), initial_state(plan)
+    R = np.tile(np.eye(3), (plan.n + 1, 1, 1))
+    weight = np.vstack((plan.forces.weight, np.zeros((1, 3))))
+    out = []
     for k in range(steps):
-        apply_forces(plan.forces, x, v, w, R, k * h, np.zeros((plan.n, 3, 3)), force, torque)
-        v += h * force / plan.mass[:, None]
-        x += h * v
-        out.append(-v[0, 1])
+        force, torque, air = weight.copy(), np.zeros_like(weight), np.zeros((plan.n + 1, 4))
+        speeds = K.speeds_table(wind, np.array([k * h]))[0]
+        if wind.model == "procedural":
+            K.wind_relax(wm, y, R, speeds, k * h, h, force, torque, air)
+        else:
+            K.wind_drag(wm, y, R, speeds, k * h, force, torque, air)
+        y[:plan.n, 7:10] += h * force[:plan.n] / plan.mass[:, None]
+        y[:plan.n, 0:3] += h * y[:plan.n, 7:10]
+        out.append(-y[0, 8])
     return np.array(out)
 
 

@@ -1,4 +1,4 @@
-"""Stage 4 (constraints part): IR constraints -> vectorized families, row metadata, time-window epochs.
+"""Stage 4 (constraints part): IR constraints -> the families of the library, row metadata, time-window epochs.
 
 Every declared constraint is compiled once into instances of the library's families (one numpy struct of
 arrays per family). Each row knows its constraint, its time window, whether `-` removed it, and its
@@ -15,15 +15,18 @@ import numpy as np
 from isaac_lang import expr as E
 from isaac_lang import ir
 
-from . import linsolve
-from .constraints import layout as L
-from .constraints.rows import capture_element_references, row_count, write_rows
+from ..rotation import quat_conjugate, quat_multiply, quat_to_matrix
+from . import layout as L
 
 # rows of each family, in the order the kernels write them, and the element tag of each
 ROW_TAGS = {"nail": ("tx", "ty", "tz"), "point": ("tx", "ty", "tz")}
 
-# default stabilization: f = 1 / (STABILIZE_STEPS * h), so that omega h = 2 pi / STABILIZE_STEPS ~ 0.31:
-# stiff enough to remove drift within a few dozen steps, far inside RK4's stability region (omega h < 2.78)
+# default stabilization of a row that assembles: a constraint that switches on apart closes along a critically
+# damped curve at this frequency (about 0.1 s), whatever the step; stable for RK4 up to steps of 44 ms
+# (omega h < 2.78)
+DEFAULT_STABILIZE = 10.0  # Hz
+# under `stabilization baumgarte` (every row stabilized for the whole run, the dissertation's formulation) the
+# default is tied to the step instead: f = 1 / (STABILIZE_STEPS h), omega h = 2 pi / STABILIZE_STEPS ~ 0.31
 STABILIZE_STEPS = 20
 
 
@@ -38,13 +41,13 @@ class MovingNail:
 
 @dataclass
 class Epoch:
-    """A stretch of time with a fixed set of active rows, and the solver structure that goes with it."""
+    """A stretch of time with a fixed set of active rows (the structure of their solve is built when the run enters
+    it: core/structure.py)."""
 
     start: float
     end: float
     active: np.ndarray  # (m,) global row indices
-    solver: str  # dense | sparse | tree | none
-    pattern: object = None  # linsolve.DensePattern, SparsePattern or TreeSolver, built on first use
+    solver: str  # "sparse" or "dense" Cholesky (the scene's `linear`), "none" without active rows
 
 
 @dataclass
@@ -64,7 +67,8 @@ class ConstraintPlan:
     row_bodies: np.ndarray  # (M, 2) int, fixed for the whole run
     moving_nails: list
     epochs: list = field(default_factory=list)
-    linear_solver: str = "auto"
+    linear_solver: str = "sparse"  # "dense": every pair of rows coupled (a full Cholesky), else minimum degree
+    stabilization: str = "projection"  # "baumgarte": no row is ever held (projected); all assemble, always
 
     def epoch_at(self, t: float) -> Epoch:
         for epoch in self.epochs:
@@ -85,8 +89,8 @@ def stabilization_gains(frequency: float, damping_ratio: float) -> tuple:
     return omega * omega, 2.0 * damping_ratio * omega
 
 
-def default_stabilization_frequency(step: float) -> float:
-    return 1.0 / (STABILIZE_STEPS * step)
+def default_stabilization_frequency(step: float, stabilization: str = "projection") -> float:
+    return 1.0 / (STABILIZE_STEPS * step) if stabilization == "baumgarte" else DEFAULT_STABILIZE
 
 
 class _FamilyBuilder:
@@ -176,7 +180,7 @@ def _finish(scene, step, families, offsets, total, meta, moving, x0, q0) -> Cons
     ks, kd, compliance = np.zeros(total), np.zeros(total), np.zeros(total)
     for c_index, constraint in enumerate(constraints):
         frequency = (constraint.stabilize_frequency or scene.solver.stabilize_frequency
-                     or default_stabilization_frequency(step))
+                     or default_stabilization_frequency(step, scene.solver.stabilization))
         ratio = constraint.damping_ratio if constraint.damping_ratio is not None else scene.solver.damping_ratio
         mask = row_constraint == c_index
         ks[mask], kd[mask] = stabilization_gains(frequency, ratio)
@@ -189,21 +193,51 @@ def _finish(scene, step, families, offsets, total, meta, moving, x0, q0) -> Cons
         row_end=np.array([constraints[c].end for c in row_constraint]).reshape(-1),
         row_ks=ks, row_kd=kd, row_compliance=compliance,
         row_bodies=_row_bodies(families, offsets, total, x0, q0), moving_nails=moving,
-        linear_solver=scene.solver.linear_solver,
+        linear_solver="dense" if scene.solver.linear_solver == "dense" else "sparse",
+        stabilization=scene.solver.stabilization,
     )
     plan.epochs = _epochs(plan, scene.time.start, scene.time.end)
     return plan
 
 
 def _row_bodies(families, offsets, total, x0, q0) -> np.ndarray:
-    """Which bodies each row touches: fixed for the run, so read once from a first evaluation."""
-    from .rotation import quat_to_matrix
-
-    block = L.RowBlock.empty(total)
-    frame = L.BodyFrame(x0, q0, np.zeros_like(x0), np.zeros_like(x0), quat_to_matrix(q0))
+    """(M,2) the bodies of each row's two slots (WORLD = -1), fixed for the run."""
+    out = np.full((total, 2), L.WORLD, dtype=np.int64)
     for family, offset in zip(families, offsets):
-        write_rows(family, frame, block, offset)
-    return block.row_bodies.copy()
+        a, b = slot_bodies(family)
+        rows = type(family).ROWS
+        out[offset:offset + rows * len(a), 0] = np.repeat(a, rows)
+        out[offset:offset + rows * len(a), 1] = np.repeat(np.broadcast_to(b, np.shape(a)), rows)
+    return out
+
+
+def slot_bodies(fam) -> tuple:
+    """(body_a, body_b) of a family's instances: the bodies of slot 0 and slot 1 (WORLD for a nail)."""
+    if isinstance(fam, L.PointToNail):
+        return fam.body, L.WORLD
+    if isinstance(fam, L.GearToWeight):
+        return fam.gear, fam.weight
+    return fam.body_a, fam.body_b
+
+
+def row_count(fam) -> int:
+    """Number of rows of a family: ROWS per instance."""
+    return type(fam).ROWS * len(slot_bodies(fam)[0])
+
+
+def capture_element_references(fam: L.Element, x0: np.ndarray, q0: np.ndarray) -> None:
+    """Fill fam.offset and fam.reference_rotation from the initial poses x0 (n,3), q0 (n,4) so that C = 0 at the
+    start (each row reads only the one its kind uses)."""
+    x0, q0 = np.asarray(x0, dtype=float).reshape(-1, 3), np.asarray(q0, dtype=float).reshape(-1, 4)
+    # the world: at the origin, unturned
+    x = np.vstack((x0, np.zeros((1, 3))))
+    q = np.vstack((q0, [[1.0, 0.0, 0.0, 0.0]]))
+    R = quat_to_matrix(q)
+    a, b = fam.body_a, fam.body_b
+    # offset = e_0 . (x_a0 - x_b0), e_0 = R_b0 axis
+    fam.offset[:] = np.einsum("ki,ki->k", np.einsum("kij,kj->ki", R[b], fam.axis), x[a] - x[b])
+    # reference_rotation = conj(q_b0) q_a0, so that q_err = 1 at the start
+    fam.reference_rotation[:] = quat_multiply(quat_conjugate(q[b]), q[a])
 
 
 def _epochs(plan: ConstraintPlan, start: float, end: float) -> list:
@@ -215,31 +249,7 @@ def _epochs(plan: ConstraintPlan, start: float, end: float) -> list:
     epochs = []
     for t0, t1 in zip(bounds[:-1], bounds[1:]):
         active = np.flatnonzero(plan.row_kept & (plan.row_start <= t0) & (plan.row_end > t0))
-        epochs.append(Epoch(t0, t1, active, "none" if active.size == 0 else "pending"))
+        epochs.append(Epoch(t0, t1, active, "none" if active.size == 0 else plan.linear_solver))
     if not epochs:
         epochs.append(Epoch(start, end, np.zeros(0, dtype=np.int64), "none"))
     return epochs
-
-
-def prepare_epoch(plan: ConstraintPlan, epoch: Epoch, dynamic_mask: np.ndarray) -> None:
-    """Choose the linear solver for this epoch's rows and build its structure (once)."""
-    if epoch.solver != "pending":
-        return
-    rb = plan.row_bodies[epoch.active]
-    n = len(dynamic_mask)
-    choice = plan.linear_solver
-    tree = None
-    if choice in ("auto", "tree"):
-        tree = linsolve.TreeSolver.build(rb, plan.row_group[epoch.active], n, dynamic_mask)
-    if choice == "auto":
-        hub_rows = linsolve.max_rows_per_body(rb, dynamic_mask)
-        choice = linsolve.choose_solver(len(epoch.active), tree is not None, hub_rows)
-    if choice == "tree" and tree is None:
-        choice = "sparse"  # not a tree: the linear-time method does not apply
-    if choice == "tree":
-        epoch.pattern = tree
-    elif choice == "sparse":
-        epoch.pattern = linsolve.SparsePattern.build(rb, n, dynamic_mask)
-    else:
-        epoch.pattern = linsolve.DensePattern(rb)
-    epoch.solver = choice

@@ -1,0 +1,51 @@
+"""The data and the scratch of a run: the mutable state the kernels advance, and their preallocated buffers.
+
+    y        (n+1, 13)  the state, one row per body [x(3) q(4: w,x,y,z) v(3) w(3: world angular velocity)], the
+                        last row the world (at rest, identity pose; never advanced)
+    Scratch  buffers of one evaluation and of the integrators (a named tuple of arrays, below)
+
+Columns of a packed row: X, Q, V, W.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+X, Q, V, W = slice(0, 3), slice(3, 7), slice(7, 10), slice(10, 13)
+PACKED = 13
+STAGES = 4  # slopes kept by the integrators (RK4's four)
+
+Scratch = namedtuple("Scratch", "R inv_inertia force torque acc param C J ct bias MJ Jd rhs lam dlam diag work dropped "
+                                "include Lx delta k y0 ys air block counters")
+# the buffers of one small block (an instance's rows, at most 3) of the procedural projection
+Block = namedtuple("Block", "K rhs x J D dx")
+# counters: [0] evaluations whose solve dropped a dependent row, [1] projections done
+COUNTER_RANK, COUNTER_PROJECTIONS = 0, 1
+
+
+def initial_state(plan) -> np.ndarray:
+    """y (n+1, 13) at the plan's start."""
+    n = plan.n
+    y = np.zeros((n + 1, PACKED))
+    y[:n, X], y[:n, Q], y[:n, V], y[:n, W] = plan.x0, plan.q0, plan.v0, plan.w0
+    y[n, 3] = 1.0  # the world: identity orientation
+    return y
+
+
+def allocate_scratch(n: int, param: np.ndarray, rows: int, fill: int = 1) -> Scratch:
+    """Buffers for n bodies (n+1 rows with the world), the constraint parameters `param` (copied: drivers write
+    into the copy), `rows` constraint rows and `fill` entries of L."""
+    b = n + 1
+    m = max(rows, 1)
+    return Scratch(
+        R=np.tile(np.eye(3), (b, 1, 1)), inv_inertia=np.zeros((b, 3, 3)), force=np.zeros((b, 3)),
+        torque=np.zeros((b, 3)), acc=np.zeros((b, 6)), param=np.array(param, dtype=np.float64, copy=True),
+        C=np.zeros(m), J=np.zeros((m, 2, 6)), ct=np.zeros(m), bias=np.zeros(m), MJ=np.zeros((m, 2, 6)),
+        Jd=np.zeros((m, 2, 6)),
+        rhs=np.zeros(m), lam=np.zeros(m), dlam=np.zeros(m), diag=np.zeros(m), work=np.zeros(m), dropped=np.zeros(m, np.bool_),
+        include=np.ones(m, np.bool_), Lx=np.zeros(max(fill, 1)), delta=np.zeros((b, 6)),
+        k=np.zeros((STAGES, b, PACKED)), y0=np.zeros((b, PACKED)), ys=np.zeros((b, PACKED)), air=np.zeros((b, 4)),
+        block=Block(np.zeros((3, 3)), np.zeros(3), np.zeros(3), np.zeros((3, 2, 6)), np.zeros((3, 2, 6)),
+                    np.zeros(6)),
+        counters=np.zeros(4, np.int64))

@@ -1,0 +1,118 @@
+"""The compiled core's decorators, its on-disk cache, and the notice for the first run on a machine.
+
+Three kinds of compiled functions, all numba `njit` with numpy's error model (a division by zero gives inf or NaN,
+which the step loop reports as a blow-up with its time and body, instead of raising inside a kernel), the GIL
+released (the live mode steps in a thread while the page is served) and no reference counting (`_nrt=False`:
+the kernels allocate nothing, they write into the scratch; numba refuses to compile one that would allocate,
+and counting the references of every array of the model at every call was most of the time of a step):
+
+    @kernel   an inner function, called only from compiled code: compiled as part of the entry point that calls
+              it, so that LLVM may inline it there (a cached function can only be called, never inlined: numba
+              links its machine code, not its IR)
+    @inlined  an inner function that takes the model, the active rows or the scratch (named tuples of dozens of
+              arrays): numba inlines it itself, at the IR level, since passing them to a call costs hundreds of
+              words of arguments
+    @entry    an entry point, called from Python: its machine code, with every kernel inlined into it, is cached
+              on disk (the first run on a machine compiles, later runs load it)
+
+Kernels take plain arrays, scalars and named tuples of arrays only (MuJoCo's model/data split), never Python
+objects, so one signature serves every scene. numba checks a cached entry point against its own source file
+only; `_refresh_cache` also drops the cache when any file of the compiled core has changed.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import time
+from pathlib import Path
+
+import numba
+
+OPTIONS = {"error_model": "numpy", "nogil": True, "_nrt": False}
+# the packages whose source the cached entry points are built from
+_RUNTIME = Path(__file__).resolve().parent.parent
+_SOURCES = ("core", "dynamics", "procedural", "wind")
+
+
+def kernel(function):
+    """An inner compiled function (module docstring)."""
+    return numba.njit(**OPTIONS)(function)
+
+
+def inlined(function):
+    """An inner compiled function inlined into its callers by numba (module docstring)."""
+    return numba.njit(inline="always", **OPTIONS)(function)
+
+
+def entry(function):
+    """A compiled entry point, cached on disk (module docstring)."""
+    return numba.njit(cache=True, **OPTIONS)(function)
+
+
+def _source_digest() -> str:
+    digest = hashlib.sha256(numba.__version__.encode())
+    for package in _SOURCES:
+        for path in sorted((_RUNTIME / package).glob("*.py")):
+            digest.update(path.name.encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def _refresh_cache() -> None:
+    """Drop numba's cache files of the core when its sources differ from the ones they were compiled from (a
+    changed kernel that an entry point inlines would otherwise be served stale)."""
+    try:
+        digest = _source_digest()
+        stamp = _RUNTIME / "core" / "__pycache__" / "isaac-kernels.digest"
+        if stamp.exists() and stamp.read_text() == digest:
+            return
+        for package in _SOURCES:
+            for cached in (_RUNTIME / package / "__pycache__").glob("*.nb[ic]"):
+                cached.unlink(missing_ok=True)
+        stamp.parent.mkdir(exist_ok=True)
+        stamp.write_text(digest)
+    except OSError:
+        pass  # a read-only install: numba then caches elsewhere, by its own rules
+
+
+_refresh_cache()
+
+
+def is_cached(dispatcher) -> bool:
+    """Whether numba's on-disk cache holds machine code for this entry point (from this source and numba version).
+    Reads numba's index file; any doubt counts as not cached (the notice is then shown needlessly, no harm)."""
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:
+        return False
+
+
+class CompileNotice:
+    """One line on stderr when a run is about to compile the core (nothing cached yet for the entry points it
+    uses), and one when the compiling is over, with how long it took:
+
+        notice = CompileNotice.begin(run, enter_epoch, ...)   # before the first call of any of them
+        ...                                                   # the calls (the first ones compile)
+        notice.end()
+    """
+
+    announced = False  # per process: the notice is shown once
+
+    def __init__(self, started: float):
+        self.started = started
+
+    @classmethod
+    def begin(cls, *dispatchers) -> "CompileNotice":
+        if cls.announced or all(d.signatures or is_cached(d) for d in dispatchers):
+            return cls(0.0)
+        cls.announced = True
+        if not os.environ.get("ISAAC_QUIET_COMPILE"):
+            print("isaac: compiling the simulation core (once per machine; later runs load it from the cache) ...",
+                  file=sys.stderr, flush=True)
+        return cls(time.perf_counter())
+
+    def end(self) -> None:
+        if self.started and not os.environ.get("ISAAC_QUIET_COMPILE"):
+            print(f"isaac: compiled in {time.perf_counter() - self.started:.1f} s", file=sys.stderr, flush=True)
+        self.started = 0.0

@@ -1,0 +1,142 @@
+"""The multiplier system, compiled: assemble A = J M^-1 J^T, factor A = L L^T, solve (PHYSICS.md section 2).
+
+The pattern of L and the couplings come from structure.py (once per epoch); here only arithmetic, in the
+order of the Active rows:
+
+    MJ_r,s  = M_b^-1 J_r,s^T = (J_lin / m_b, I_b^-1 J_ang)    (b the body of slot s of row r; 0 without mass)
+    A_ij    = sum over the slots of i and j on one dynamic body of J_i,si . MJ_j,sj
+    L       left-looking sparse Cholesky: column j = (A_:j - sum_k L_:k L_jk) / sqrt(pivot)
+
+Redundant rows (two constraints that say the same thing, a closed loop) make A singular. A pivot that falls
+below RANK_RTOL of its row's diagonal marks the row dependent on the rows before it: its column of L is dropped
+and its multiplier is 0, so the other rows are solved exactly (for consistent constraints the result satisfies
+every row; the multipliers are one of the many that do). `factor` returns how many rows it dropped.
+
+A row left out of a solve (`include` False: a row still assembling, in the projection) gets an identity row:
+multiplier 0, no coupling.
+"""
+from __future__ import annotations
+
+import math
+
+from .jit import kernel
+
+# a pivot below this fraction of its diagonal marks a row dependent on the ones before it
+RANK_RTOL = 1e-10
+
+
+@kernel
+def inverse_mass_times_J(act, cons, bodies, inv_inertia, J, MJ):
+    """MJ (M,2,6) <- M^-1 J^T per slot of the active rows: (J_lin / m, I^-1 J_ang), 0 for bodies without mass;
+    inv_inertia (n+1,3,3) the world inverse inertias."""
+    for i in range(len(act.rows)):
+        r = act.rows[i]
+        k = cons.row_instance[r]
+        for s in range(2):
+            b = cons.body[k, s]
+            im = bodies.inv_mass[b]  # (the world row, b = -1, has none)
+            if im == 0.0:
+                for c in range(6):
+                    MJ[r, s, c] = 0.0
+                continue
+            for c in range(3):
+                MJ[r, s, c] = im * J[r, s, c]
+                MJ[r, s, 3 + c] = (inv_inertia[b, c, 0] * J[r, s, 3] + inv_inertia[b, c, 1] * J[r, s, 4]
+                                   + inv_inertia[b, c, 2] * J[r, s, 5])
+
+
+@kernel
+def assemble(act, J, MJ, include, everything, Lx, diagonal):
+    """Lx <- the lower triangle of A = J M^-1 J^T in L's pattern (fill entries 0), diagonal (m,) <- A's diagonal;
+    rows not included (unless `everything`) get an identity row and column."""
+    for p in range(len(Lx)):
+        Lx[p] = 0.0
+    for c in range(len(act.cp_dest)):
+        if not everything and not (include[act.cp_i[c]] and include[act.cp_j[c]]):
+            continue
+        ri, rj, si, sj = act.cp_ri[c], act.cp_rj[c], act.cp_si[c], act.cp_sj[c]
+        # A_ij += J_i,si . (M^-1 J^T)_j,sj
+        Lx[act.cp_dest[c]] += (J[ri, si, 0] * MJ[rj, sj, 0] + J[ri, si, 1] * MJ[rj, sj, 1]
+                               + J[ri, si, 2] * MJ[rj, sj, 2] + J[ri, si, 3] * MJ[rj, sj, 3]
+                               + J[ri, si, 4] * MJ[rj, sj, 4] + J[ri, si, 5] * MJ[rj, sj, 5])
+    for j in range(len(act.rows)):
+        if not everything and not include[j]:
+            Lx[act.Lp[j]] = 1.0
+        diagonal[j] = Lx[act.Lp[j]]
+
+
+@kernel
+def factor(act, Lx, diagonal, work, dropped):
+    """L L^T = A in place (Lx holds A's lower triangle on entry, L on return), left-looking, column by column;
+    dropped (m,) <- rows found dependent (module docstring); returns their number. diagonal (m,): A's, from
+    `assemble`; work (m,) must be zero on entry and is left zero."""
+    count = 0
+    for j in range(len(act.rows)):
+        start, end = act.Lp[j], act.Lp[j + 1]
+        for p in range(start + 1, end):
+            work[act.Li[p]] = Lx[p]
+        pivot = Lx[start]
+        # column j of A minus the columns k < j that reach row j: A_:j - sum_k L_jk L_:k (rows >= j)
+        for e in range(act.Rp[j], act.Rp[j + 1]):
+            k, at = act.Rk[e], act.Rpos[e]
+            l_jk = Lx[at]
+            if l_jk != 0.0:
+                pivot -= l_jk * l_jk
+                for p in range(at + 1, act.Lp[k + 1]):
+                    work[act.Li[p]] -= Lx[p] * l_jk
+        if pivot > RANK_RTOL * diagonal[j] and diagonal[j] > 0.0:
+            root = math.sqrt(pivot)
+            Lx[start] = root
+            for p in range(start + 1, end):
+                Lx[p] = work[act.Li[p]] / root
+            dropped[j] = False
+        else:
+            Lx[start] = 1.0
+            for p in range(start + 1, end):
+                Lx[p] = 0.0
+            dropped[j] = True
+            count += 1
+        for p in range(start + 1, end):
+            work[act.Li[p]] = 0.0
+    return count
+
+
+@kernel
+def substitute(act, Lx, dropped, b, x):
+    """x (m,) <- A^-1 b (m,) with A = L L^T from `factor` (dropped rows: x = 0). b is overwritten."""
+    m = len(act.rows)
+    # forward: L z = b, column by column
+    for j in range(m):
+        if dropped[j]:
+            b[j] = 0.0
+            continue
+        z = b[j] / Lx[act.Lp[j]]
+        b[j] = z
+        for p in range(act.Lp[j] + 1, act.Lp[j + 1]):
+            b[act.Li[p]] -= Lx[p] * z
+    # backward: L^T x = z
+    for j in range(m - 1, -1, -1):
+        if dropped[j]:
+            x[j] = 0.0
+            continue
+        total = b[j]
+        for p in range(act.Lp[j] + 1, act.Lp[j + 1]):
+            total -= Lx[p] * x[act.Li[p]]
+        x[j] = total / Lx[act.Lp[j]]
+
+
+@kernel
+def apply_impulses(act, cons, MJ, lam, scale, out):
+    """out (n+1,6) += scale M^-1 J^T lam: each active row's multiplier pushes the bodies of its slots."""
+    for i in range(len(act.rows)):
+        l = lam[i] * scale
+        if l == 0.0:
+            continue
+        r = act.rows[i]
+        k = cons.row_instance[r]
+        for s in range(2):
+            b = cons.body[k, s]
+            if b < 0:
+                continue
+            for c in range(6):
+                out[b, c] += MJ[r, s, c] * l

@@ -1,0 +1,37 @@
+"""The dynamics plan: Lagrange-multiplier constrained dynamics, integrated by RK4, midpoint or semi-implicit Euler,
+with the held constraints projected back onto their manifold after every step (PHYSICS.md section 2).
+
+    accelerations.py   the right-hand side: forces, then the multiplier solve (core/solve.py)
+    projection.py      positions and velocities back on the constraints after a step
+    integrate.py       the integrators and the step loop: many steps per call, frames recorded inside
+
+`DynamicsStepper` is the Python side: it tabulates the time functions of a run of steps and calls the loop.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .integrate import GRID, INTEGRATORS, run
+from .projection import enter_epoch
+
+
+class DynamicsStepper:
+    grid = GRID  # time-table rows per step
+    entries = (run, enter_epoch)  # the compiled entry points it calls
+
+    def __init__(self, compiled, plan):
+        self.compiled = compiled
+        self.integrator = INTEGRATORS[plan.integrator]
+
+    def run(self, act, y, t0: float, h: float, steps: int, frame_step, frames, status) -> int:
+        """`steps` steps of h from t0 (integrate.run); returns the steps taken."""
+        c = self.compiled
+        table = c.tabulate(t0, h, steps, GRID)
+        return run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status)
+
+    def enter(self, act, y, t: float) -> None:
+        """A new epoch begins at t: the held rows' velocities onto their manifold (a row that switched on with its
+        points together, but moving apart, is held from this instant)."""
+        if len(act.rows):
+            c = self.compiled
+            enter_epoch(c.model, act, c.scratch, y, c.table.evaluate(t, 0.0, 1))

@@ -1,0 +1,94 @@
+"""The dynamics plan's right-hand side, compiled: accelerations of every body with Lagrange multipliers.
+
+    M a = F + J^T lambda,   (J M^-1 J^T) lambda = -bias - J M^-1 F - [kd (J v + ct) + ks C]   (PHYSICS.md section 2)
+
+The bracket (Baumgarte's stabilization) acts only on rows that are still assembling (a constraint that switched on
+with its points apart, pulling them together along C'' + kd C' + ks C = 0 at the constraint's own frequency and
+damping ratio). Rows on their manifold ("held") are kept there by the projection after each step
+(projection.py), which leaves the integrator's order intact: RK4 stays fourth order.
+
+`accelerations(model, active, scratch, y, table, j, acc)`: the state y (n+1,13) at grid row j of the time table;
+acc (n+1,6) <- (a, alpha) per body.
+"""
+from __future__ import annotations
+
+from ..core import model as M
+from ..core.bodies import place_kinematic, rotations, world_inverse_inertia
+from ..core.forces import add_gyroscopic, add_loads, add_springs, weights
+from ..core.jit import entry, inlined, kernel
+from ..core.rows import evaluate_rows, row_motion
+from ..core.timetable import TIME
+from ..core.solve import apply_impulses, assemble, factor, inverse_mass_times_J, substitute
+from ..wind.kernels import wind_drag
+
+
+@inlined
+def body_forces(m, s, y, table, j):
+    """force, torque (n+1,3) <- every force stage of the model at grid row j (R and inverse inertias current)."""
+    weights(m.bodies, s.force, s.torque)
+    add_springs(m.springs, y, s.R, s.force, s.torque)
+    add_loads(m.loads, table, j, s.R, s.force, s.torque)
+    if len(m.wind.body):
+        speeds = table[j, m.wind_column:m.wind_column + m.wind_count]
+        wind_drag(m.wind, y, s.R, speeds, table[j, TIME], s.force, s.torque, s.air)
+    add_gyroscopic(m.bodies, y, s.R, s.torque)
+
+
+@inlined
+def unconstrained(m, s, table, j, acc):
+    """acc <- F / m and I^-1 tau for dynamic bodies, the path's accelerations for kinematic ones, 0 otherwise."""
+    bodies = m.bodies
+    for b in range(len(bodies.inv_mass)):
+        if bodies.dynamic[b]:
+            im, I = bodies.inv_mass[b], s.inv_inertia
+            for c in range(3):
+                acc[b, c] = im * s.force[b, c]
+                acc[b, 3 + c] = I[b, c, 0] * s.torque[b, 0] + I[b, c, 1] * s.torque[b, 1] + I[b, c, 2] * s.torque[b, 2]
+        else:
+            for c in range(6):
+                acc[b, c] = 0.0
+    kin = m.kinematic
+    for i in range(len(kin.body)):
+        b, c = kin.body[i], kin.column[i]
+        for e in range(3):
+            acc[b, e] = table[j, c + M.KIN_A + e]
+            acc[b, 3 + e] = table[j, c + M.KIN_ALPHA + e]
+
+
+@inlined
+def constrain(m, act, s, y, table, j, acc):
+    """acc += M^-1 J^T lambda, lambda from the multiplier equation (module docstring)."""
+    cons = m.constraints
+    evaluate_rows(m, act, s, y, table, j)
+    inverse_mass_times_J(act, cons, m.bodies, s.inv_inertia, s.J, s.MJ)
+    for i in range(len(act.rows)):
+        r = act.rows[i]
+        # rhs = -bias - J a_free  [- kd (J v + ct) - ks C while the row assembles]
+        rhs = -s.bias[r] - row_motion(cons, r, y, acc, s.J, 0)
+        if not act.held[i]:
+            rhs -= cons.kd[r] * (row_motion(cons, r, y, y, s.J, 7) + s.ct[r]) + cons.ks[r] * s.C[r]
+        s.rhs[i] = rhs
+    assemble(act, s.J, s.MJ, s.include, True, s.Lx, s.diag)
+    if factor(act, s.Lx, s.diag, s.work, s.dropped):
+        s.counters[0] += 1
+    substitute(act, s.Lx, s.dropped, s.rhs, s.lam)
+    apply_impulses(act, cons, s.MJ, s.lam, 1.0, acc)
+
+
+@inlined
+def accelerations(m, act, s, y, table, j, acc):
+    """acc (n+1,6) <- (a, alpha) of every body at state y, grid row j (module docstring)."""
+    place_kinematic(m.kinematic, table, j, y)
+    rotations(y, s.R)
+    world_inverse_inertia(m.bodies, s.R, s.inv_inertia)
+    body_forces(m, s, y, table, j)
+    unconstrained(m, s, table, j, acc)
+    if len(act.rows):
+        constrain(m, act, s, y, table, j, acc)
+
+
+@entry
+def evaluate_accelerations(m, act, s, y, table, acc):
+    """acc (n+1,6) <- (a, alpha) at state y and time table row 0 (for tests and for callers that need the
+    accelerations of one state, not a run)."""
+    accelerations(m, act, s, y, table, 0, acc)

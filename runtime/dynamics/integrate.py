@@ -1,0 +1,148 @@
+"""The dynamics plan's step loop, compiled: many steps per call, frames recorded inside it.
+
+    dx/dt = v      dq/dt = 0.5 (0, w) q      dv/dt = a      dw/dt = alpha
+
+RK4 (classic Runge-Kutta), MIDPOINT (explicit RK2) and EULER (semi-implicit: velocities first, then positions
+with the new velocities, the orientation turned exactly by w h). Quaternions are renormalized at every stage.
+After each step: kinematic bodies exactly on their paths, the projection of the held rows (projection.py),
+rows that finished assembling join them, and a check for a blow-up (a non-finite state, or a speed beyond
+RUNAWAY_SPEED). The time table has 2 rows per step (t, t + h/2, t + h at rows 2i, 2i+1, 2i+2).
+
+`run(m, act, s, y, table, integrator, t0, h, steps, frame_step, frames, status)` advances y by `steps` steps of h
+from t0 (step i at t0 + i h, no accumulated sum); after step frame_step[f] (0: before the first) it records frame
+f: frames.y[f] the state, frames.energy[f], frames.error[f] the largest |C| of the active rows and
+frames.worst[f] that row. status <- (code, step, body or row): code 0 done, RUNAWAY_BODY, RUNAWAY_ROW. Returns
+the steps taken.
+"""
+from __future__ import annotations
+
+import math
+
+from ..core.bodies import copy_state, normalize_quaternions, place_kinematic, runaway_body
+from ..core.jit import entry, inlined, kernel
+from ..core.record import RUNAWAY_CONSTRAINT_ERROR, record
+from .accelerations import accelerations
+from .projection import project, settle_rows
+
+RK4, MIDPOINT, EULER = 0, 1, 2
+INTEGRATORS = {"rk4": RK4, "midpoint": MIDPOINT, "euler": EULER}
+GRID = 2  # time-table rows per step
+# status codes (a blow-up: a speed beyond core/bodies.RUNAWAY_SPEED, or a constraint error beyond
+# core/record.RUNAWAY_CONSTRAINT_ERROR)
+DONE, RUNAWAY_BODY, RUNAWAY_ROW = 0, 1, 2
+
+@inlined
+def _slope(m, act, s, y, table, j, k):
+    """k (n+1,13) <- dy/dt at state y, grid row j: (v, 0.5 (0, w) q, a, alpha)."""
+    accelerations(m, act, s, y, table, j, s.acc)
+    for b in range(len(y)):
+        w, x, yy, z = y[b, 3], y[b, 4], y[b, 5], y[b, 6]
+        ox, oy, oz = y[b, 10], y[b, 11], y[b, 12]
+        for c in range(3):
+            k[b, c] = y[b, 7 + c]
+        # dq/dt = 0.5 (0, w) * q
+        k[b, 3] = 0.5 * (-ox * x - oy * yy - oz * z)
+        k[b, 4] = 0.5 * (ox * w + oy * z - oz * yy)
+        k[b, 5] = 0.5 * (-ox * z + oy * w + oz * x)
+        k[b, 6] = 0.5 * (ox * yy - oy * x + oz * w)
+        for c in range(6):
+            k[b, 7 + c] = s.acc[b, c]
+
+
+@kernel
+def _stage(y0, k, scale, out):
+    """out <- y0 + scale k, quaternions renormalized."""
+    for b in range(len(y0)):
+        for c in range(13):
+            out[b, c] = y0[b, c] + scale * k[b, c]
+    normalize_quaternions(out)
+
+
+@kernel
+def _scheme(integrator, i):
+    """(c_i, b_i) of stage i of an explicit Runge-Kutta scheme whose stage i starts from y0 + c_i h k_{i-1}:
+    RK4 (0, 1/2, 1/2, 1; weights 1/6, 1/3, 1/3, 1/6) and the explicit midpoint rule (0, 1/2; weights 0, 1)."""
+    if integrator == RK4:
+        return (0.0, 0.5, 0.5, 1.0)[i], (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)[i]
+    return (0.0, 0.5)[i], (0.0, 1.0)[i]
+
+
+@inlined
+def runge_kutta_step(m, act, s, y, table, j, h, integrator):
+    """y <- y0 + h sum_i b_i k_i, k_i the slope at y0 + c_i h k_{i-1} (time t + c_i h: grid row j + 2 c_i). One
+    call site for the slope, in a loop, so that the right-hand side is compiled once (not once per stage)."""
+    stages = 4 if integrator == RK4 else 2
+    k = s.k
+    copy_state(y, s.ys)
+    for i in range(stages):
+        c, _ = _scheme(integrator, i)
+        if i > 0:
+            _stage(s.y0, k[i - 1], c * h, s.ys)
+        _slope(m, act, s, s.ys, table, j + int(GRID * c), k[i])
+        if i == 0:
+            copy_state(s.ys, s.y0)  # after the first slope: it placed the kinematic bodies at t
+    for b in range(len(y)):
+        for e in range(13):
+            total = 0.0
+            for i in range(stages):
+                total += _scheme(integrator, i)[1] * k[i, b, e]
+            y[b, e] = s.y0[b, e] + h * total
+    normalize_quaternions(y)
+
+
+@inlined
+def euler_step(m, act, s, y, table, j, h):
+    """v += h a(x, v); x += h v_new; q turned by w_new for h (exact for constant w), renormalized."""
+    accelerations(m, act, s, y, table, j, s.acc)
+    for b in range(len(y) - 1):
+        for c in range(6):
+            y[b, 7 + c] += h * s.acc[b, c]
+        for c in range(3):
+            y[b, c] += h * y[b, 7 + c]
+        ox, oy, oz = y[b, 10], y[b, 11], y[b, 12]
+        speed = math.sqrt(ox * ox + oy * oy + oz * oz)
+        half = 0.5 * h * speed
+        # dq = (cos(|w| h / 2), sin(|w| h / 2) w / |w|), q <- dq * q
+        scale = math.sin(half) / speed if speed > 1e-12 else 0.5 * h
+        dw, dx, dy, dz = math.cos(half), scale * ox, scale * oy, scale * oz
+        w, x, yy, z = y[b, 3], y[b, 4], y[b, 5], y[b, 6]
+        y[b, 3] = dw * w - dx * x - dy * yy - dz * z
+        y[b, 4] = dw * x + dx * w + dy * z - dz * yy
+        y[b, 5] = dw * yy - dx * z + dy * w + dz * x
+        y[b, 6] = dw * z + dx * yy - dy * x + dz * w
+    normalize_quaternions(y)
+
+
+@inlined
+def one_step(m, act, s, y, table, integrator, j, h):
+    """One step of h from grid row j, then the kinematic bodies on their paths and the projection."""
+    if integrator == EULER:
+        euler_step(m, act, s, y, table, j, h)
+    else:
+        runge_kutta_step(m, act, s, y, table, j, h, integrator)
+    place_kinematic(m.kinematic, table, j + GRID, y)
+    project(m, act, s, y, table, j + GRID, False)
+    settle_rows(m, act, s, y)
+
+
+@entry
+def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status):
+    """Advance y by `steps` steps of h (module docstring)."""
+    status[0], status[1], status[2] = DONE, 0, -1
+    f = 0
+    while f < len(frame_step) and frame_step[f] == 0:
+        record(m, act, s, y, table, 0, frames, f)
+        f += 1
+    for step in range(steps):
+        one_step(m, act, s, y, table, integrator, GRID * step, h)
+        body = runaway_body(m.bodies, y)
+        if body >= 0:
+            status[0], status[1], status[2] = RUNAWAY_BODY, step + 1, body
+            return step + 1
+        while f < len(frame_step) and frame_step[f] == step + 1:
+            record(m, act, s, y, table, GRID * (step + 1), frames, f)
+            if not frames.error[f] <= RUNAWAY_CONSTRAINT_ERROR:
+                status[0], status[1], status[2] = RUNAWAY_ROW, step + 1, frames.worst[f]
+                return step + 1
+            f += 1
+    return steps

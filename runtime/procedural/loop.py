@@ -1,0 +1,87 @@
+"""The procedural plan's step loop, compiled: forces once per step (the wind's drag relaxed over the step,
+wind/drag.py), then `substeps` substeps of move, project, put back (substep.py, project.py); kinematic bodies and
+moving constraint parameters at every substep's end; frames recorded and blow-ups caught as in the dynamics plan
+(dynamics/integrate.py). The time table has `substeps` rows per step (row S i + s at the start of substep s).
+"""
+from __future__ import annotations
+
+import math
+
+from ..core.bodies import copy_state, place_kinematic, rotations, runaway_body
+from ..core.forces import add_loads, add_springs, weights
+from ..core.jit import entry, kernel
+from ..core.record import RUNAWAY_CONSTRAINT_ERROR, record
+from ..core.rows import apply_drivers
+from ..core.timetable import TIME
+from ..dynamics.integrate import DONE, RUNAWAY_BODY, RUNAWAY_ROW
+from ..wind.kernels import wind_relax
+from .project import direct, start_directions, sweep
+from .substep import SHAKE_MAX_TURN, predict, put_back
+
+
+@kernel
+def step_forces(m, s, y, table, j, h):
+    """force, torque <- gravity, springs, loads at the step's start; bodies in the wind: relaxed over h."""
+    rotations(y, s.R)
+    weights(m.bodies, s.force, s.torque)
+    add_springs(m.springs, y, s.R, s.force, s.torque)
+    add_loads(m.loads, table, j, s.R, s.force, s.torque)
+    if len(m.wind.body):
+        speeds = table[j, m.wind_column:m.wind_column + m.wind_count]
+        wind_relax(m.wind, y, s.R, speeds, table[j, TIME], h, s.force, s.torque, s.air)
+
+
+@kernel
+def _fastest_turn(m, y, hs):
+    """The largest |w| hs of a dynamic body."""
+    largest = 0.0
+    for b in range(len(y) - 1):
+        if m.bodies.dynamic[b]:
+            largest = max(largest, hs * math.sqrt(y[b, 10] ** 2 + y[b, 11] ** 2 + y[b, 12] ** 2))
+    return largest
+
+
+@kernel
+def procedural_step(m, act, sw, curves, s, y, table, j, h, substeps, iterations, all_at_once):
+    """One step of h from grid row j: forces, then the substeps."""
+    step_forces(m, s, y, table, j, h)
+    hs = h / substeps
+    for sub in range(substeps):
+        row = j + sub
+        start_directions(m, act, s, y, table, row)
+        shake = _fastest_turn(m, y, hs) <= SHAKE_MAX_TURN
+        copy_state(y, s.y0)
+        predict(m, s, y, hs)
+        place_kinematic(m.kinematic, table, row + 1, y)
+        rotations(y, s.R)
+        if len(act.rows):
+            apply_drivers(m.constraints, s.param, table, row + 1)
+            t = table[row + 1, TIME]
+            if all_at_once:
+                direct(m, act, curves, s, y, t, hs, iterations, shake)
+            else:
+                sweep(m, act, sw, curves, s, y, t, hs, shake, iterations)
+        put_back(m, s, y, hs)
+
+
+@entry
+def run(m, act, sw, curves, s, y, table, h, steps, substeps, iterations, all_at_once, frame_step, frames, status):
+    """Advance y by `steps` steps of h (as dynamics/integrate.run, with the procedural step)."""
+    status[0], status[1], status[2] = DONE, 0, -1
+    f = 0
+    while f < len(frame_step) and frame_step[f] == 0:
+        record(m, act, s, y, table, 0, frames, f)
+        f += 1
+    for step in range(steps):
+        procedural_step(m, act, sw, curves, s, y, table, substeps * step, h, substeps, iterations, all_at_once)
+        body = runaway_body(m.bodies, y)
+        if body >= 0:
+            status[0], status[1], status[2] = RUNAWAY_BODY, step + 1, body
+            return step + 1
+        while f < len(frame_step) and frame_step[f] == step + 1:
+            record(m, act, s, y, table, substeps * (step + 1), frames, f)
+            if not frames.error[f] <= RUNAWAY_CONSTRAINT_ERROR:
+                status[0], status[1], status[2] = RUNAWAY_ROW, step + 1, frames.worst[f]
+                return step + 1
+            f += 1
+    return steps
