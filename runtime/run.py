@@ -46,7 +46,6 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     audio = plan.audio.record(sim) if plan.audio is not None else None
     recorder = Recorder(plan.frame_times, plan.names)
     error = None
-    energy0 = sim.energy()
     with _progress(plan, options.progress) as bar:
         def on_frame(simulation, recorded):
             bar.update(1)
@@ -57,6 +56,7 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
             sim.run_frames(plan.frame_times, recorder, on_frame if options.progress or options.on_frame else None)
         except NumericalError as failure:
             error = failure
+    energy0 = float(recorder.energy[0]) if recorder.count else sim.energy()  # the first frame's: the start
     report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
     return RunResult(sim, recorder, report, error, audio)
 

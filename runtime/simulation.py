@@ -19,7 +19,8 @@ import numpy as np
 
 from .core import data as D
 from .core.build import CompiledPlan
-from .core.entries import place_paths, row_errors, state_constraint_error, state_energy
+from .core import model as M
+from .core.entries import row_errors, state_constraint_error, state_energy
 from .core.jit import CompileNotice
 from .core.record import RUNAWAY_CONSTRAINT_ERROR, Frames
 from .dynamics.integrate import DONE, RUNAWAY_BODY
@@ -76,12 +77,12 @@ class Simulation:
         self.state = State.initial(plan)
         self.source = source or {}
         self.events: list = []
-        self._compile_notice = CompileNotice.begin(row_errors, state_energy, state_constraint_error, place_paths,
-                                                   *self._stepper_class(plan).entries)
+        self._compile_notice = CompileNotice.begin(row_errors, *self._stepper_class(plan).entries)
         self.compiled = CompiledPlan(plan)
         self.stepper = self._stepper_class(plan)(self.compiled, plan)
         self._switches = np.array(plan.constraints.switch_times() if plan.constraints else [])
         self._act = None  # the Active rows of the epoch the state is in
+        self._frame_now = False  # a frame is due at the state's time (recorded before the next step)
         self._status = np.zeros(3, np.int64)
         # collisions: detection and impulses after every step (runtime.collide), built only when the plan has them
         self.collider = plan.collisions.start(self) if plan.collisions is not None else None
@@ -267,13 +268,16 @@ class Simulation:
         s = self.state
         total = count * len(is_frame)
         frame_ends = {(k + 1) * count for k in range(len(is_frame)) if is_frame[k]}
-        in_python = self.collider is not None or bool(self.observers)
+        if self._frame_now:  # the frame at the start of these steps (see _advance)
+            frame_ends.add(0)
+            self._frame_now = False
+        in_python = self._python_stages()
         done = 0
         t0 = s.t
         while done < total:
             steps = min(per_call, total - done)
-            frame_step = np.array(sorted(end - done for end in frame_ends if done < end <= done + steps and
-                                         not in_python), np.int64)
+            frame_step = np.array(sorted(end - done for end in frame_ends if (done < end or end == 0)
+                                         and end <= done + steps and not in_python), np.int64)
             frames = self._frame_buffer(len(frame_step))
             if self.collider is not None:
                 self.collider.before_step(h, self._epoch())
@@ -289,6 +293,10 @@ class Simulation:
                 self._after_step(h, act)
                 if done in frame_ends and sink is not None:
                     self._record_now(sink)
+
+    def _python_stages(self) -> bool:
+        """Whether a stage still runs in Python after every step (collisions, observers)."""
+        return self.collider is not None or bool(self.observers)
 
     def _epoch(self, t: float | None = None):
         c = self.plan.constraints
@@ -340,9 +348,13 @@ class Simulation:
         return act
 
     def _place_kinematic(self) -> None:
-        if self.plan.kinematics is not None:
+        kin = self.compiled.model.kinematic
+        if len(kin.body):
             table = self.compiled.table.evaluate(self.state.t, 0.0, 1)
-            place_paths(self.compiled.model.kinematic, table, self.state.y)
+            for b, c in zip(kin.body.tolist(), kin.column.tolist()):
+                y = self.state.y[b]
+                y[0:3], y[7:10] = table[0, c + M.KIN_X:c + M.KIN_X + 3], table[0, c + M.KIN_V:c + M.KIN_V + 3]
+                y[3:7], y[10:13] = table[0, c + M.KIN_Q:c + M.KIN_Q + 4], table[0, c + M.KIN_W:c + M.KIN_W + 3]
 
     def _failure(self) -> NumericalError:
         code, step, which = (int(v) for v in self._status)

@@ -1,8 +1,8 @@
 """The entry points the Python side calls outside the step loops (cached machine code, kernels inlined): the
-energy and constraint error of a state, kinematic bodies placed on their paths, rows evaluated at a state."""
+energy and constraint error of a state, rows evaluated at a state."""
 from __future__ import annotations
 
-from .bodies import energy, place_kinematic, rotations
+from .bodies import energy, rotations
 from .jit import entry
 from .record import constraint_error
 from .rows import apply_drivers, write_rows
@@ -20,12 +20,6 @@ def state_constraint_error(m, act, s, y, table):
     """(largest |C| of the active position rows, its row or -1) at state y, time table row 0."""
     rotations(y, s.R)
     return constraint_error(m, act, s, y, table, 0)
-
-
-@entry
-def place_paths(kin, table, y):
-    """The kinematic bodies on their paths at time table row 0."""
-    place_kinematic(kin, table, 0, y)
 
 
 @entry

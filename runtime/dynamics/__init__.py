@@ -12,26 +12,25 @@ from __future__ import annotations
 import numpy as np
 
 from .integrate import GRID, INTEGRATORS, run
-from .projection import enter_epoch
 
 
 class DynamicsStepper:
     grid = GRID  # time-table rows per step
-    entries = (run, enter_epoch)  # the compiled entry points it calls
+    entries = (run,)  # the compiled entry points it calls
 
     def __init__(self, compiled, plan):
         self.compiled = compiled
         self.integrator = INTEGRATORS[plan.integrator]
+        self.entering = None  # the Active rows of an epoch just entered, until its first run
 
     def run(self, act, y, t0: float, h: float, steps: int, frame_step, frames, status) -> int:
         """`steps` steps of h from t0 (integrate.run); returns the steps taken."""
         c = self.compiled
         table = c.tabulate(t0, h, steps, GRID)
-        return run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status)
+        entering, self.entering = self.entering is act, None
+        return run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status,
+                   entering)
 
     def enter(self, act, y, t: float) -> None:
-        """A new epoch begins at t: the held rows' velocities onto their manifold (a row that switched on with its
-        points together, but moving apart, is held from this instant)."""
-        if len(act.rows):
-            c = self.compiled
-            enter_epoch(c.model, act, c.scratch, y, c.table.evaluate(t, 0.0, 1))
+        """A new epoch begins at t: its first run starts by putting the held rows on their manifold."""
+        self.entering = act

@@ -61,42 +61,52 @@ def _stage(y0, k, scale, out):
 @kernel
 def _scheme(integrator, i):
     """(c_i, b_i) of stage i of an explicit Runge-Kutta scheme whose stage i starts from y0 + c_i h k_{i-1}:
-    RK4 (0, 1/2, 1/2, 1; weights 1/6, 1/3, 1/3, 1/6) and the explicit midpoint rule (0, 1/2; weights 0, 1)."""
+    RK4 (0, 1/2, 1/2, 1; weights 1/6, 1/3, 1/3, 1/6) and the explicit midpoint rule (0, 1/2; weights 0, 1);
+    semi-implicit Euler takes the one slope at c = 0."""
     if integrator == RK4:
         return (0.0, 0.5, 0.5, 1.0)[i], (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)[i]
-    return (0.0, 0.5)[i], (0.0, 1.0)[i]
+    if integrator == MIDPOINT:
+        return (0.0, 0.5)[i], (0.0, 1.0)[i]
+    return 0.0, 1.0
 
 
 @inlined
-def runge_kutta_step(m, act, s, y, table, j, h, integrator):
-    """y <- y0 + h sum_i b_i k_i, k_i the slope at y0 + c_i h k_{i-1} (time t + c_i h: grid row j + 2 c_i). One
-    call site for the slope, in a loop, so that the right-hand side is compiled once (not once per stage)."""
-    stages = 4 if integrator == RK4 else 2
-    k = s.k
+def _slopes(m, act, s, y, table, j, h, integrator):
+    """The scheme's slopes k_i at y0 + c_i h k_{i-1} (time t + c_i h: grid row j + 2 c_i), into s.k; s.y0 <- y
+    with the kinematic bodies at t. One call site for the slope, in a loop, so that the right-hand side is compiled
+    once for every scheme and stage."""
+    stages = 4 if integrator == RK4 else 2 if integrator == MIDPOINT else 1
     copy_state(y, s.ys)
     for i in range(stages):
         c, _ = _scheme(integrator, i)
         if i > 0:
-            _stage(s.y0, k[i - 1], c * h, s.ys)
-        _slope(m, act, s, s.ys, table, j + int(GRID * c), k[i])
+            _stage(s.y0, s.k[i - 1], c * h, s.ys)
+        _slope(m, act, s, s.ys, table, j + int(GRID * c), s.k[i])
         if i == 0:
             copy_state(s.ys, s.y0)  # after the first slope: it placed the kinematic bodies at t
+    return stages
+
+
+@kernel
+def _runge_kutta(s, y, h, integrator, stages):
+    """y <- y0 + h sum_i b_i k_i, quaternions renormalized."""
     for b in range(len(y)):
         for e in range(13):
             total = 0.0
             for i in range(stages):
-                total += _scheme(integrator, i)[1] * k[i, b, e]
+                total += _scheme(integrator, i)[1] * s.k[i, b, e]
             y[b, e] = s.y0[b, e] + h * total
     normalize_quaternions(y)
 
 
-@inlined
-def euler_step(m, act, s, y, table, j, h):
+@kernel
+def _semi_implicit_euler(s, y, h):
     """v += h a(x, v); x += h v_new; q turned by w_new for h (exact for constant w), renormalized."""
-    accelerations(m, act, s, y, table, j, s.acc)
     for b in range(len(y) - 1):
+        for c in range(13):
+            y[b, c] = s.y0[b, c]
         for c in range(6):
-            y[b, 7 + c] += h * s.acc[b, c]
+            y[b, 7 + c] += h * s.k[0, b, 7 + c]
         for c in range(3):
             y[b, c] += h * y[b, 7 + c]
         ox, oy, oz = y[b, 10], y[b, 11], y[b, 12]
@@ -116,19 +126,23 @@ def euler_step(m, act, s, y, table, j, h):
 @inlined
 def one_step(m, act, s, y, table, integrator, j, h):
     """One step of h from grid row j, then the kinematic bodies on their paths and the projection."""
+    stages = _slopes(m, act, s, y, table, j, h, integrator)
     if integrator == EULER:
-        euler_step(m, act, s, y, table, j, h)
+        _semi_implicit_euler(s, y, h)
     else:
-        runge_kutta_step(m, act, s, y, table, j, h, integrator)
+        _runge_kutta(s, y, h, integrator, stages)
     place_kinematic(m.kinematic, table, j + GRID, y)
     project(m, act, s, y, table, j + GRID, False)
     settle_rows(m, act, s, y)
 
 
 @entry
-def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status):
-    """Advance y by `steps` steps of h (module docstring)."""
+def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering):
+    """Advance y by `steps` steps of h (module docstring); `entering` an epoch, first the held rows onto their
+    manifold (a row that switched on with its points together but moving apart is held from this instant)."""
     status[0], status[1], status[2] = DONE, 0, -1
+    if entering:
+        project(m, act, s, y, table, 0, True)
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
         record(m, act, s, y, table, 0, frames, f)

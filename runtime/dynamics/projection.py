@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 from ..core.bodies import rotations, turn, world_inverse_inertia
-from ..core.jit import entry, inlined, kernel
+from ..core.jit import inlined, kernel
 from ..core.rows import evaluate_rows, row_motion
 from ..core.solve import apply_impulses, assemble, factor, inverse_mass_times_J, substitute
 from ..core.vec import quat_to_matrix
@@ -114,12 +114,6 @@ def project(m, act, s, y, table, j, fresh):
                 for c in range(6):
                     y[b, 7 + c] += s.delta[b, c]
     return True
-
-
-@entry
-def enter_epoch(m, act, s, y, table):
-    """A new epoch: the held rows' velocities (and positions) onto their manifold at time table row 0."""
-    project(m, act, s, y, table, 0, True)
 
 
 @inlined

@@ -264,6 +264,6 @@ def test_compiled_integrators_match_textbook_ones(name):
     frames = Frames(np.zeros((0, sim.plan.n + 1, 13)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
     status = np.zeros(3, np.int64)
     I.run(c.model, act, scratch, got, c.tabulate(t, h, 1, I.GRID), I.INTEGRATORS[name], h, 1, np.zeros(0, np.int64),
-          frames, status)
+          frames, status, False)
     assert status[0] == I.DONE
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
