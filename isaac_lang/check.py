@@ -27,6 +27,27 @@ def check(scene: ir.Scene, reporter: Reporter) -> list[str]:
         for name in sound.bodies:
             if not scene.body(name).collide and sound.trigger in ("collide", "contact"):
                 warnings.append(f"{sound.source}: sound `{sound.name}` waits for `{name}`, which has `collide off`")
+    warnings += unused_properties(scene)
     if scene.solver.step is not None and scene.solver.step > (scene.time.end - scene.time.start):
         warnings.append("the solver step is longer than the whole scene")
+    return warnings
+
+
+def unused_properties(scene: ir.Scene) -> list[str]:
+    """Warnings for what a scene sets that nothing uses (never silence): the air's drag on a body that does not
+    move by forces, a drag or an area with `wind off`, an `air` density no body feels."""
+    from .lower import AIR_DENSITY, DEFAULT_DRAG
+
+    warnings = []
+    for body in scene.bodies:
+        response = body.wind
+        drag_given = response.area is not None or response.drag != DEFAULT_DRAG[body.shape.type]
+        if response.enabled and body.motion != "dynamic":
+            warnings.append(f"{body.source}: body `{body.name}` is {body.motion}: the air's drag on it is not used")
+        elif not response.enabled and drag_given:
+            warnings.append(f"{body.source}: body `{body.name}` has `wind off`: its `drag` and `area` are not used")
+    feels_air = any(b.wind.enabled and b.motion == "dynamic" for b in scene.bodies)
+    if scene.air_density != AIR_DENSITY and not feels_air:
+        warnings.append(f"the scene's `air` ({scene.air_density:g} kg/m3) is not used: no body feels the air "
+                        f"(give one a `drag`)")
     return warnings

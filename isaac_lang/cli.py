@@ -1,4 +1,6 @@
-"""The `isaac` command. Exit codes: 0 success, 2 a problem in the scene, 1 a bug in the tool.
+"""The `isaac` command. Exit codes: 0 success, 1 a bug in the tool, 2 a problem in the scene or the command line
+(a bad option value, a missing asset or extra, a blow-up), 3 a finished run that broke a stated tolerance
+(`run --max-constraint-error`, `golden`).
 
     isaac parse SCENE [--set NAME=VALUE ...]     canonical IR JSON on stdout
     isaac check SCENE                            diagnostics only
@@ -7,6 +9,8 @@
     isaac watch SCENE [--out DIR] [--port N] [--no-serve] [--poll] [--plots] [run options]   live reload
     isaac export SCENE --format rib|gltf|glb [--out DIR] [--trajectory NPZ] [--frames A:B:S] ...
     isaac bench [--quick] [--only NAME] [--out DIR]   the benchmark suite (benchmarks/, a source checkout)
+    isaac golden SCENE... [--update] [--set ...]   golden files beside each scene: record, or check (exit 3)
+    isaac --version; isaac -q|-qq|-v COMMAND ...   no progress bar; errors and warnings only; more verbose
 """
 from __future__ import annotations
 
@@ -19,13 +23,16 @@ import time
 import traceback
 from pathlib import Path
 
+from . import options as opt
 from .diagnostics import SceneError, SourceCache
 
-EXIT_OK, EXIT_BUG, EXIT_SCENE = 0, 1, 2
+EXIT_OK, EXIT_BUG, EXIT_SCENE, EXIT_TOLERANCE = 0, 1, 2, 3
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="isaac", description="Physically based motion and sound, as text.")
+    parser.add_argument("--version", action="version", version=f"isaac {_version()}")
+    verbosity_options(parser, 0)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def scene_command(name: str, help: str) -> argparse.ArgumentParser:
@@ -33,8 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("scene", help="the .isaac file")
         sub.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                          help="override a parameter (a top-level `let`), e.g. --set length=2m")
-        sub.add_argument("--max-items", type=int, default=None,
+        sub.add_argument("--max-items", type=opt.positive_int, default=None,
                          help="limit on declarations after loops and parts expand (default 200000)")
+        sub.add_argument("--strict", action="store_true", help="warnings are errors (exit 2)")
+        verbosity_options(sub, argparse.SUPPRESS)
         return sub
 
     scene_command("parse", "print the canonical IR as JSON")
@@ -42,7 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
     scene_command("plan", "print the compiled plan: stages on/off, solver, sizes")
     run = scene_command("run", "simulate and write trajectory, events, audio and report")
     run_options(run)
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--max-constraint-error", type=opt.constraint_limit,
+                     default=_default_constraint_limit(), metavar="LIMIT",
+                     help="exit 3 when the run keeps a constraint error above this once switched-on constraints "
+                          "have settled (m, or rad; e.g. 1cm; default 0.1; `off`: no limit)")
     run.add_argument("--mic", nargs="?", const="", default=None, metavar="DEVICE",
                      help="blow into the microphone: mic() in a wind's speed listens (needs sounddevice)")
     run.add_argument("--viewer", action=argparse.BooleanOptionalAction, default=True,
@@ -51,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="write plots/ (energy, constraint error, trajectories, spectrogram); needs matplotlib")
     watch = scene_command("watch", "re-run the scene on every save; a live viewer on 127.0.0.1")
     run_options(watch)
-    watch.add_argument("--port", type=int, default=8765, help="live viewer port on 127.0.0.1 (0: any free one)")
+    watch.add_argument("--port", type=opt.port, default=8765, help="live viewer port on 127.0.0.1 (0: any free one)")
     watch.add_argument("--no-serve", dest="serve", action="store_false", help="no live viewer, files only")
     watch.add_argument("--poll", action="store_true", help="poll the files instead of OS notifications")
     watch.add_argument("--plots", action="store_true", help="write plots/ after every complete run")
@@ -76,6 +88,25 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--out", default=None, help="output folder (default benchmarks/results[/quick])")
     bench.add_argument("--docs", action=argparse.BooleanOptionalAction, default=None,
                        help="rewrite the tables of docs/performance.md (default: full runs into benchmarks/results)")
+    golden_command(commands)
+    sweep = commands.add_parser("sweep", help="run many variants of a scene (each a Dask task): one table")
+    sweep.add_argument("scene", help="the .isaac file")
+    sweep.add_argument("--set", action="append", default=[], metavar="NAME=VALUES",
+                       help="the values of a parameter: V1,V2,... or A..B/N (N values, ends included); several "
+                            "--set make their product; with --random, A..B is a range to draw from")
+    sweep.add_argument("--random", type=opt.positive_int, default=None, metavar="N", help="N random variants instead")
+    sweep.add_argument("--seed", type=int, default=0, help="seed of --random (default 0)")
+    sweep.add_argument("--solver", choices=("dynamics", "procedural", "auto"), default=None)
+    sweep.add_argument("--step", type=opt.step_time, default=None, help="solver step, e.g. 1ms (bare: seconds)")
+    sweep.add_argument("--until", type=opt.end_time, default=None, help="stop each run at this time, e.g. 2s")
+    sweep.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="a Dask scheduler, tcp://HOST:PORT (default: a local cluster, one process per core)")
+    sweep.add_argument("--workers", type=opt.positive_int, default=None,
+                       help="processes of the local cluster (default: one per core)")
+    sweep.add_argument("--out", default=None, help="output folder (default out/<scene>-sweep/)")
+    sweep.add_argument("--keep", choices=("outputs", "table"), default="outputs",
+                       help="outputs: each variant's files in OUT/variants/<id>/ (default); table: the table only")
+    verbosity_options(sweep, argparse.SUPPRESS)
     return parser
 
 
@@ -87,17 +118,67 @@ def run_options(sub: argparse.ArgumentParser) -> None:
     """The options that say how to simulate, shared by run and watch."""
     sub.add_argument("--out", default=None, help="output folder (default out/<scene>/)")
     sub.add_argument("--solver", choices=("dynamics", "procedural", "auto"), default=None)
-    sub.add_argument("--step", type=float, default=None, help="solver step in seconds")
-    sub.add_argument("--until", type=float, default=None, help="stop at this time (seconds)")
+    sub.add_argument("--step", type=opt.step_time, default=None, help="solver step, e.g. 1ms (bare: seconds)")
+    sub.add_argument("--until", type=opt.end_time, default=None, help="stop at this time, e.g. 2s (bare: seconds)")
+
+
+def golden_command(commands) -> None:
+    """`isaac golden SCENE... [--update] [--set ...]` (isaac_lang/golden)."""
+    golden = commands.add_parser("golden", help="check each scene against its golden files (exit 3 on a mismatch), "
+                                                "or record them with --update")
+    golden.add_argument("scenes", nargs="+", metavar="SCENE", help=".isaac files; goldens in SCENE_STEM.golden/")
+    golden.add_argument("--update", action="store_true", help="(re)write the golden files from this run")
+    golden.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="override a parameter, as for run (also `[run] set` in SCENE_STEM.golden.toml)")
+    verbosity_options(golden, argparse.SUPPRESS)
+
+
+def cmd_golden(args, sources) -> int:
+    from .golden.command import run_golden
+
+    def format_error(error, scene, loaded_sources):
+        return _as_written(error, scene, loaded_sources).format(loaded_sources)
+
+    return run_golden(args.scenes, args.update, _overrides(args), _verbosity(args), format_error)
+
+
+def verbosity_options(parser: argparse.ArgumentParser, default) -> None:
+    """-q and -v, before the command or after it (a subcommand's default is SUPPRESS: it keeps the main one's)."""
+    parser.add_argument("-q", "--quiet", action="count", default=default,
+                        help="say less: no progress bar; twice (-qq): errors and warnings only")
+    parser.add_argument("-v", "--verbose", action="count", default=default,
+                        help="say more: the plan before a run, every file written")
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("isaac")
+    except Exception:  # not installed (a source tree on sys.path)
+        return "unknown (not installed)"
+
+
+def _default_constraint_limit() -> float:
+    """runtime/checks.py DEFAULT_MAX_CONSTRAINT_ERROR, repeated so that building the parser imports no runtime"""
+    return 0.1
+
+
+def _verbosity(args) -> int:
+    """-2 errors and warnings only (-qq), -1 no progress bar (-q), 0 normal, 1 verbose (-v)."""
+    return max(-2, min(1, int(getattr(args, "verbose", 0) or 0) - int(getattr(args, "quiet", 0) or 0)))
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(opt.join_time_units(list(sys.argv[1:] if argv is None else argv)))
+    except SystemExit as done:  # --help, --version (0), a bad option value (2): argparse has said why
+        return done.code if isinstance(done.code, int) else (0 if done.code is None else EXIT_SCENE)
     sources = SourceCache()
     try:
         code = COMMANDS[args.command](args, sources)
     except SceneError as error:
-        print(_as_written(error, args.scene, sources).format(sources), file=sys.stderr)
+        print(_as_written(error, getattr(args, "scene", ""), sources).format(sources), file=sys.stderr)
         code = EXIT_SCENE
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -154,6 +235,7 @@ def _usage_diagnostic(message: str):
 
 
 def _load(args, sources):
+    from .diagnostics import warning_diagnostic
     from .expand import Limits
     from .load import load_scene
 
@@ -162,8 +244,12 @@ def _load(args, sources):
         raise SceneError([_usage_diagnostic(f"no such scene file: {path}")])
     limits = Limits(max_items=args.max_items) if args.max_items else Limits()
     loaded = load_scene(path, _overrides(args), limits, sources)
-    for warning in loaded.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+    strict = getattr(args, "strict", False)
+    warnings = [warning_diagnostic(text, "error" if strict else "warning") for text in loaded.warnings]
+    if warnings and strict:
+        raise SceneError(warnings)
+    if warnings:
+        print(_as_written(SceneError(warnings), args.scene, sources).format(sources), file=sys.stderr)
     return loaded
 
 
@@ -183,11 +269,13 @@ def cmd_check(args, sources) -> int:
 
 
 def cmd_plan(args, sources) -> int:
+    from isaac_runtime.extras import check_extras
     from isaac_runtime.plan import PlanOptions, compile_plan
 
     loaded = _load(args, sources)
     plan = compile_plan(loaded.scene, PlanOptions(folder=Path(args.scene).parent))
     print(plan.describe())
+    check_extras(plan)  # a plan this machine cannot run says so now (exit 2), naming the extra to install
     return EXIT_OK
 
 
@@ -195,46 +283,31 @@ def cmd_run(args, sources) -> int:
     from isaac_runtime.run import RunOptions, run_scene
 
     loaded = _load(args, sources)
+    _check_until(args, loaded.scene)
     if args.mic is not None:  # a SignalError (no sounddevice, no device) is a SceneError: exit 2, with a hint
         from isaac_runtime.signals import open_microphone
         open_microphone(args.mic or None)
-    out = Path(args.out) if args.out else Path("out") / loaded.scene.name
+    out = Path(args.out) if args.out else default_out(args.scene)
+    verbosity = _verbosity(args)
     options = RunOptions(solver=args.solver, step=args.step, until=args.until,
-                         progress=not args.quiet and sys.stderr.isatty(), folder=Path(args.scene).parent)
-    code = run_scene(loaded.scene, out, options, scene_path=Path(args.scene))
-    if args.viewer:
-        _write_viewer(loaded.scene, out, Path(args.scene).parent)
-    if args.plots:
-        return _write_plots(loaded.scene, out) or code
-    return code
+                         progress=verbosity >= 0 and sys.stderr.isatty(), folder=Path(args.scene).parent,
+                         viewer=args.viewer, plots=args.plots, max_constraint_error=args.max_constraint_error,
+                         strict=args.strict, verbosity=verbosity, scene_warnings=tuple(loaded.warnings))
+    return run_scene(loaded.scene, out, options, scene_path=Path(args.scene))
 
 
-def _write_viewer(scene, out: Path, folder: Path) -> None:
-    import numpy as np
-
-    from isaac_runtime.viewer import write_viewer
-
-    with np.load(out / "trajectory.npz", allow_pickle=False) as data:
-        arrays = dict(data)
-    write_viewer(out / "viewer.html", scene, arrays, folder, audio=out / "audio.wav" if scene.sounds else None)
+def default_out(scene_path) -> Path:
+    """out/<file stem>/: named after the scene's file (two files that declare the same scene name never share
+    a folder)."""
+    return Path("out") / Path(scene_path).stem
 
 
-def _write_plots(scene, out: Path) -> int:
-    """Plots of the run in out/plots/; 0, or 1 (with a message, not a traceback) without matplotlib."""
-    import numpy as np
-
-    try:
-        from isaac_runtime.plots import write_plots
-
-        import matplotlib  # noqa: F401 (the optional `plots` extra)
-    except ImportError:
-        print("isaac: --plots needs matplotlib: pip install 'isaac[plots]'", file=sys.stderr)
-        return EXIT_BUG
-    with np.load(out / "trajectory.npz", allow_pickle=False) as data:
-        arrays = dict(data)
-    paths = write_plots(out / "plots", arrays, out / "audio.wav" if scene.sounds else None, title=scene.name)
-    print(f"plots: {', '.join(p.name for p in paths)} in {out / 'plots'}/")
-    return EXIT_OK
+def _check_until(args, scene) -> None:
+    """--until must leave something to simulate: after the scene's start."""
+    until = getattr(args, "until", None)
+    if until is not None and until <= scene.time.start:
+        raise SceneError([_usage_diagnostic(f"--until {until:g} s is not after the scene's start "
+                                            f"({scene.time.start:g} s): nothing to simulate")])
 
 
 def cmd_watch(args, sources) -> int:
@@ -244,6 +317,10 @@ def cmd_watch(args, sources) -> int:
     path = Path(args.scene)
     if not path.is_file():
         raise SceneError([_usage_diagnostic(f"no such scene file: {path}")])
+    if args.plots:  # every extra is checked before the first run, never after it
+        from isaac_runtime.extras import check_modules
+
+        check_modules([("matplotlib", "--plots")])
     options = WatchOptions(out=Path(args.out) if args.out else None, overrides=_overrides(args), solver=args.solver,
                            step=args.step, until=args.until,
                            limits=Limits(max_items=args.max_items) if args.max_items else Limits(),
@@ -261,7 +338,7 @@ def cmd_export(args, sources) -> int:
     from isaac_runtime.export.rib import RibOptions
 
     loaded = _load(args, sources)
-    out = Path(args.out) if args.out else Path("out") / loaded.scene.name
+    out = Path(args.out) if args.out else default_out(args.scene)
     width, sep, height = args.size.lower().partition("x")
     if not (sep and width.isdigit() and height.isdigit() and int(width) > 0 and int(height) > 0):
         raise SceneError([_usage_diagnostic(f"--size wants WIDTHxHEIGHT in pixels, e.g. 960x540, got `{args.size}`")])
@@ -308,8 +385,15 @@ def cmd_bench(args, sources) -> int:
     return run(quick=args.quick, only=args.only, out=args.out, docs=args.docs)
 
 
+def cmd_sweep(args, sources) -> int:
+    """Variants on Dask, one table (runtime/sweep/command.py; dask and pandas are imported from here on)."""
+    from isaac_runtime.sweep.command import run_command
+
+    return run_command(args, _verbosity(args))
+
+
 COMMANDS = {"parse": cmd_parse, "check": cmd_check, "plan": cmd_plan, "run": cmd_run, "watch": cmd_watch,
-            "export": cmd_export, "bench": cmd_bench}
+            "export": cmd_export, "bench": cmd_bench, "sweep": cmd_sweep, "golden": cmd_golden}
 
 def entry() -> None:  # pragma: no cover (the `isaac` command; tests call main)
     """`isaac ...`: main(), then leave without the interpreter's teardown. Every output is written and closed by

@@ -9,6 +9,7 @@ Every diagnostic carries a position and prints the gcc way:
 """
 from __future__ import annotations
 
+import dataclasses
 import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -82,6 +83,10 @@ class SourceCache:
         if name in self._lines:
             self._lines[other] = self._lines[name]
 
+    def lines(self, name: str) -> list[str] | None:
+        """Every line of a file read so far (None if it was not)."""
+        return self._lines.get(name)
+
     def line(self, pos: SourcePos) -> str | None:
         lines = self._lines.get(pos.file)
         if lines is None or not (1 <= pos.line <= len(lines)):
@@ -97,24 +102,58 @@ class Reporter:
 
     def __init__(self):
         self.diagnostics: list[Diagnostic] = []
+        self._at: dict = {}  # (file, line, col) -> index of the diagnostic reported there
+        self._again: dict = {}  # index -> how many more times that place was reached (loop iterations, parts)
 
     def error(self, message: str, pos: SourcePos | None, hint: str | None = None) -> None:
         diagnostic = Diagnostic(message, pos, hint)
-        # the same mistake met again (a part used twice, a loop's body) is reported once
+        # one diagnostic per place in the source: a loop's body or a part used twice reaches it again, with other
+        # names (`link3`, `link4`) but the same mistake
+        where = (pos.file, pos.line, pos.col) if pos is not None else None
+        if where is not None and where in self._at:
+            index = self._at[where]
+            self._again[index] = self._again.get(index, 0) + 1
+            return
         if len(self.diagnostics) < self.LIMIT and diagnostic not in self.diagnostics:
+            if where is not None:
+                self._at[where] = len(self.diagnostics)
             self.diagnostics.append(diagnostic)
+
+    def replace(self, index: int, diagnostic: Diagnostic) -> None:
+        """Put a better diagnostic in the place of one already reported (the same position)."""
+        self.diagnostics[index] = diagnostic
 
     def fatal(self, message: str, pos: SourcePos | None, hint: str | None = None) -> "SceneError":
         """Record an error and return the exception that stops the pass now."""
         self.error(message, pos, hint)
-        return SceneError(self.diagnostics)
+        return SceneError(self.reported())
+
+    def reported(self) -> list:
+        """The diagnostics, each saying how many more times its place was reached."""
+        out = []
+        for index, diagnostic in enumerate(self.diagnostics):
+            again = self._again.get(index, 0)
+            if again:
+                note = f"(reached {again} more time{'s' if again > 1 else ''}: a loop or a part repeats this line)"
+                diagnostic = dataclasses.replace(diagnostic, hint=f"{diagnostic.hint} {note}" if diagnostic.hint
+                                                 else note)
+            out.append(diagnostic)
+        return out
 
     def raise_if_any(self) -> None:
         if self.diagnostics:
             # reported in the order of the file, the way a reader fixes them
-            ordered = sorted(self.diagnostics, key=lambda d: (d.pos is None, d.pos.file if d.pos else "",
-                                                              d.pos.line if d.pos else 0, d.pos.col if d.pos else 0))
+            ordered = sorted(self.reported(), key=lambda d: (d.pos is None, d.pos.file if d.pos else "",
+                                                             d.pos.line if d.pos else 0, d.pos.col if d.pos else 0))
             raise SceneError(ordered)
+
+
+def warning_diagnostic(text: str, severity: str = "warning") -> Diagnostic:
+    """A warning of the front end or the plan (`file:line:col: message`, or a bare message) as a Diagnostic, so
+    that it prints the gcc way (`file:line:col: warning: message`, the source line, a caret)."""
+    head, sep, rest = text.partition(": ")
+    pos = SourcePos.parse(head) if sep else None
+    return Diagnostic(rest if pos is not None else text, pos, severity=severity)
 
 
 def did_you_mean(word: str, candidates, what: str = "") -> str | None:

@@ -192,6 +192,8 @@ class Sound:
 class Exclusion:
     bodies: tuple
     source: str
+    start: float = -math.inf  # s: the window in which the pairs do not collide (the whole run by default)
+    end: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -227,6 +229,7 @@ class Scene:
     listener: Listener
     audio: Audio
     parameters: tuple  # ((name, value), ...) the scene's `let`s after --set overrides
+    air_density: float = 1.2  # kg/m3: the drag of bodies that feel air, in still air and in the winds
     schema: str = SCHEMA
 
     def body(self, name: str) -> Body:

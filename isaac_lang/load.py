@@ -14,12 +14,14 @@ from pathlib import Path
 from lark.exceptions import UnexpectedInput
 
 from . import ir
+from .assets import check_assets
 from .check import check
 from .diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean
 from .expand import Expander, Limits
 from .lower import SceneLowerer
 from .lower_expr import ExprContext, ExprLowerer, Scope
 from .syntax import describe_syntax_error, parse_expression
+from .typos import explain_unit_typos
 
 
 @dataclass
@@ -30,18 +32,20 @@ class Loaded:
 
 
 def load_scene(path, overrides: dict | None = None, limits: Limits | None = None,
-               sources: SourceCache | None = None) -> Loaded:
-    """Parse, expand, lower and check the scene file at path. Raises SceneError with every diagnostic."""
+               sources: SourceCache | None = None, assets: bool = True) -> Loaded:
+    """Parse, expand, lower and check the scene file at path (and read the files it names, unless `assets` is
+    false). Raises SceneError with every diagnostic."""
     path = Path(path)
-    return _load(path, path.parent, overrides or {}, limits or Limits(), sources or SourceCache())
+    return _load(path, path.parent, overrides or {}, limits or Limits(), sources or SourceCache(), assets=assets)
 
 
 def load_text(text: str, name: str = "<scene>", overrides: dict | None = None, folder=".",
-              limits: Limits | None = None, sources: SourceCache | None = None) -> Loaded:
-    """The same for scene text held in memory (includes resolve relative to `folder`)."""
+              limits: Limits | None = None, sources: SourceCache | None = None, assets: bool = True) -> Loaded:
+    """The same for scene text held in memory (includes and assets resolve relative to `folder`)."""
     folder = Path(folder)
     path = folder / name
-    return _load(path, folder, overrides or {}, limits or Limits(), sources or SourceCache(), text=text)
+    return _load(path, folder, overrides or {}, limits or Limits(), sources or SourceCache(), text=text,
+                 assets=assets)
 
 
 @contextmanager
@@ -61,13 +65,17 @@ def _collector_paused():
             gc.enable()
 
 
-def _load(path: Path, root: Path, overrides: dict, limits: Limits, sources: SourceCache, text=None) -> Loaded:
+def _load(path: Path, root: Path, overrides: dict, limits: Limits, sources: SourceCache, text=None,
+          assets: bool = True) -> Loaded:
     with _collector_paused():
-        return _load_stages(path, root, overrides, limits, sources, text)
+        try:
+            return _load_stages(path, root, overrides, limits, sources, text, assets)
+        except SceneError as error:
+            raise explain_unit_typos(error, sources) from None
 
 
 def _load_stages(path: Path, root: Path, overrides: dict, limits: Limits, sources: SourceCache,
-                 text=None) -> Loaded:
+                 text=None, assets: bool = True) -> Loaded:
     reporter = Reporter()
     parsed_overrides = _parse_overrides(overrides, reporter, sources)
     reporter.raise_if_any()
@@ -86,6 +94,9 @@ def _load_stages(path: Path, root: Path, overrides: dict, limits: Limits, source
     scene = SceneLowerer(expander.out, reporter, path.name).run()
     warnings = check(scene, reporter)
     reporter.raise_if_any()
+    if assets:
+        check_assets(scene, root, reporter, sources)
+        reporter.raise_if_any()
     return Loaded(scene, warnings, sources)
 
 

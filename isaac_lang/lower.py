@@ -17,10 +17,12 @@ from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, is_table, ref_
 from .props import Props
 from .syntax import KEYWORDS
 
+AIR_DENSITY = 1.2  # kg/m3, air at sea level and 20 C
 SHAPES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh")
 MOTIONS = ("dynamic", "static", "kinematic")
 
 SETTINGS = {"time": "start .. end", "gravity": "acceleration vector", "frames": "output frame rate",
+            "air": "air density (drag of bodies in still air and in the winds)",
             "seed": "seed of random things", "listener": "{ at, gain, delay }", "audio": "{ rate, channels }"}
 SOLVER_PROPS = {"integrator": "rk4 | euler | midpoint", "step": "time step", "stabilize": "frequency",
                 "damping": "damping ratio", "linear": "auto | dense | sparse | tree", "substeps": "procedural",
@@ -46,6 +48,9 @@ WIND_PROPS = {"direction": "where the air goes", "from": "source point", "toward
 SOUND_PROPS = {"play": "audio-graph expression", "gain": "linear gain or dB"}
 LISTENER_PROPS = {"at": "position", "gain": "gain", "delay": "on | off"}
 AUDIO_PROPS = {"rate": "sample rate", "channels": "1 or 2"}
+
+# the words that open a constraint's time window: a misspelled one after a constraint reads as a setting
+WINDOW_WORDS = ("during", "from", "until")
 
 DEFAULT_DRAG = {"sphere": 0.47, "box": 1.05, "cylinder": 0.82, "capsule": 0.82, "mesh": 1.0, "plane": 1.17}
 
@@ -90,6 +95,7 @@ class SceneLowerer:
             constraints=tuple(constraints), forces=tuple(forces), winds=tuple(winds), sounds=tuple(sounds),
             exclusions=tuple(exclusions), listener=settings["listener"], audio=settings["audio"],
             parameters=tuple(sorted((k, _plain(v.node)) for k, v in self.x.parameters.items())),
+            air_density=settings["air"],
         )
 
     def _each(self, decls, build) -> list:
@@ -130,7 +136,7 @@ class SceneLowerer:
         if self.x.settings:
             scope = self.x.settings[0][1]
             props = Props(None, SETTINGS, "the scene", lowerer, scope, items=[t for t, _, _ in self.x.settings],
-                          keywords=KEYWORDS)
+                          keywords=KEYWORDS + WINDOW_WORDS)
         else:
             props = _EmptyProps()
         start, end = props.range("time", U.TIME) or (0.0, 10.0)
@@ -141,12 +147,15 @@ class SceneLowerer:
         if frame_rate <= 0:
             self.reporter.error("the frame rate must be positive", lowerer.pos(props.node("frames")))
         gravity = props.vector("gravity", U.ACCELERATION, (0.0, -9.81, 0.0))
+        # still air is air: 1.2 kg/m3 (sea level, 20 C) unless the scene says otherwise
+        self.air_density = props.scalar("air", U.DENSITY, AIR_DENSITY)
         seed = props.integer("seed", 0)
         listener_props = props.block("listener", LISTENER_PROPS, "the listener")
         audio_props = props.block("audio", AUDIO_PROPS, "the audio settings")
         return {
             "time": ir.Timeline(start, end, frame_rate),
             "gravity": gravity,
+            "air": self.air_density,
             "seed": seed,
             "listener": ir.Listener(listener_props.vector("at", U.LENGTH, (0.0, 0.0, 0.0)),
                                     listener_props.scalar("gain", U.DIMENSIONLESS, 1.0),
@@ -369,7 +378,7 @@ class SceneLowerer:
             props.word("falloff", ("none", "inverse", "inverse_square"), "none" if origin is None else "inverse_square"),
             props.scalar("distance", U.LENGTH, 1.0), props.scalar("spread", U.ANGLE, math.radians(30.0)),
             props.scalar("turbulence", U.DIMENSIONLESS, 0.0), props.scalar("gust", U.TIME, 0.5),
-            props.scalar("air", U.DENSITY, 1.2), str(decl.lowerer.pos(decl.tree)),
+            props.scalar("air", U.DENSITY, self.air_density), str(decl.lowerer.pos(decl.tree)),
         )
 
     def _sound(self, decl: Decl, winds: set) -> ir.Sound:
@@ -394,10 +403,18 @@ class SceneLowerer:
         return 10.0 ** (number / 20.0) if "dB" in text else number
 
     def _exclusion(self, decl: Decl) -> ir.Exclusion:
-        names = [self.resolve_body(t, decl) for t in decl.tree.children]
+        from lark import Tree
+
+        children = list(decl.tree.children)
+        window = None
+        if children and isinstance(children[-1], Tree) and children[-1].data in ("during", "window_from",
+                                                                               "window_until"):
+            window = children.pop()
+        names = [self.resolve_body(t, decl) for t in children]
         if len(names) < 2:
             raise decl.lowerer.fail("`exclude` names at least two bodies", decl.tree)
-        return ir.Exclusion(tuple(names), str(decl.lowerer.pos(decl.tree)))
+        start, end = self.constraints.window(window, decl, "exclusion") if window is not None else (-math.inf, math.inf)
+        return ir.Exclusion(tuple(names), str(decl.lowerer.pos(decl.tree)), start, end)
 
     # -- names --------------------------------------------------------------------------------------------
 

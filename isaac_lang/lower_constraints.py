@@ -42,7 +42,7 @@ class ConstraintLowerer:
             elif child is not None:
                 window = child
         terms = self.terms(expr_tree, decl.scope, decl)
-        start, end = self._window(window, decl)
+        start, end = self.window(window, decl)
         props = Props(block, CONSTRAINT_PROPS, f"constraint `{decl.name}`", decl.lowerer, decl.scope)
         frequency = props.scalar("stabilize", U.FREQUENCY)
         if frequency is not None and frequency <= 0:
@@ -52,15 +52,16 @@ class ConstraintLowerer:
                              props.scalar("damping", U.DIMENSIONLESS), props.scalar("compliance", U.DIMENSIONLESS),
                              str(decl.lowerer.pos(decl.tree)))
 
-    def _window(self, window, decl):
+    def window(self, window, decl, what: str = "constraint"):
+        """(start, end) of `during A .. B`, `from A`, `until B` (or always: 0 .. inf)."""
         if window is None:
             return 0.0, math.inf
         values = [decl.lowerer.constant(decl.lowerer.lower(c, decl.scope, FIXED), U.TIME,
-                                        "a constraint's time", c) for c in window.children]
+                                        f"a {what}'s time", c) for c in window.children]
         if window.data == "during":
             start, end = values
             if end <= start:
-                raise decl.lowerer.fail("the constraint ends before it starts", window,
+                raise decl.lowerer.fail(f"the {what} ends before it starts", window,
                                         "write `during START .. END` with END after START")
             return start, end
         if window.data == "window_from":

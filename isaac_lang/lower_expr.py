@@ -405,6 +405,12 @@ class ExprLowerer:
                             f"write the unit after the number, e.g. `{_example_number(value)} {example}`")
         if value.dim == dim or (dim == U.DIMENSIONLESS and value.dim == U.ANGLE):
             return value.node
+        if U.without_angle(value.dim) == U.without_angle(dim) and dim[3] != 0:
+            # rad is dimensionless, as in SI: sqrt(g / L) is an angular velocity; but Hz counts cycles
+            if _written_in_hertz(node):
+                raise self.fail(f"{what} wants {U.describe(dim)}: Hz counts cycles, not radians", node,
+                                "1 Hz is 2 pi rad/s: write e.g. `2 * pi * 3 rad/s`, or the value in rad/s")
+            return value.node
         expected = U.EXAMPLE_UNIT.get(dim, U.format_dim(dim))
         raise self.fail(f"{what} wants {U.describe(dim)}, not {U.describe(value.dim)}", node,
                         f"use a unit of {U.describe(dim)}, e.g. `{expected}`")
@@ -419,6 +425,12 @@ class ExprLowerer:
 # the method lowering each kind of tree: `number` -> `ExprLowerer._number` (one look-up per node)
 _RULES = {name: getattr(ExprLowerer, "_" + name) for name in (
     "number", "string", "quantity", "vector", "neg", "add", "sub", "mul", "div", "pow", "name_ref", "call", "keys")}
+def _written_in_hertz(tree) -> bool:
+    """Whether a unit in the source of this expression is Hz or kHz."""
+    tokens = tree.scan_values(lambda v: isinstance(v, Token)) if hasattr(tree, "scan_values") else [tree]
+    return any("Hz" in str(token) for token in tokens if getattr(token, "type", "") != "STRING")
+
+
 UNITS_HINT = "units: m cm mm kg g s ms deg rad Hz N Pa GPa, combined as kg/m3"
 
 

@@ -35,6 +35,8 @@ class Props:
         if name not in self.vocabulary:
             hint = (did_you_mean(name, list(self.vocabulary) + list(self.keywords))
                     or "allowed here: " + ", ".join(sorted(self.vocabulary)))
+            if any(hint == f"did you mean `{word}`?" for word in self.keywords):  # `bdy bob sphere { ... }`
+                raise self.lowerer.fail(f"`{name}` is not a keyword", key, hint)
             raise self.lowerer.fail(f"unknown property `{name}` in {self.what}", key, hint)
         if name in self.entries:
             raise self.lowerer.fail(f"`{name}` is given twice in {self.what}", key)

@@ -129,6 +129,12 @@ def parse_unit(text: str) -> tuple[float, Dim]:
     return factor, tuple(dim)
 
 
+def without_angle(dim: Dim | None):
+    """The dimension with radians dropped (they are dimensionless in SI; the language keeps them apart only so
+    that a bare angle means degrees and Hz is not read as rad/s)."""
+    return None if dim is None else (dim[0], dim[1], dim[2], 0)
+
+
 def describe(dim: Dim | None) -> str:
     if dim is None:
         return "a number without unit"

@@ -77,7 +77,7 @@ class Job:
 
 @dataclass
 class WatchOptions:
-    out: Path | None = None  # default out/<scene name>/
+    out: Path | None = None  # default out/<scene file stem>/
     overrides: dict = field(default_factory=dict)
     solver: str | None = None
     step: float | None = None
@@ -165,8 +165,7 @@ class Watch:
         self.last_ok = True
         self.scene_error = None
         self.files = sources.files | {self.path.resolve()} | _named_files(loaded.scene, self.folder)
-        for warning in loaded.warnings:
-            self.say(f"warning: {warning}")
+        self.say_warnings(loaded.warnings, sources)
         canonical = ir.to_json(loaded.scene)
         if canonical == self.good_ir and self.job is not None:
             self.say(f"{what}: no change to the scene (same IR); result #{self.job.n} stays")
@@ -175,7 +174,7 @@ class Watch:
             return
         self.stop_job("a newer save replaces it")
         self.count += 1
-        out = self.options.out or Path("out") / loaded.scene.name
+        out = self.options.out or Path("out") / self.path.stem  # named after the file, as `isaac run` does
         job = Job(self.count, loaded.scene, saved_at, self.folder, out, sources)
         self.good_ir = canonical
         if self.server:
@@ -183,6 +182,15 @@ class Watch:
         self.say(f"{what}: result #{job.n}: running {loaded.scene.name} "
                  f"({len(loaded.scene.bodies)} bodies, {loaded.scene.time.start:g} s .. {loaded.scene.time.end:g} s)")
         self.start_job(job)
+
+    def say_warnings(self, warnings: list, sources=None) -> None:
+        """Warnings the gcc way (`file:line:col: warning: ...`), as `isaac run` prints them."""
+        from .diagnostics import warning_diagnostic
+
+        if warnings:
+            text = self.format_error(SceneError([warning_diagnostic(w) for w in warnings]), sources or SourceCache())
+            with self._print_lock:
+                print(text, file=sys.stderr, flush=True)
 
     def report_error(self, error: SceneError, sources) -> None:
         text = self.format_error(error, sources)
@@ -280,13 +288,14 @@ class Watch:
                          f"({frames} frames, up to t = {t:.3g} s); the run goes on")
 
     def _finish(self, job: Job, result) -> None:
-        _write_outputs(job.scene, result, job.out)
+        written = _write_outputs(job.scene, result, job.out) + [job.out / "viewer.html"]
         arrays = result.recorder.arrays()
         audio = job.out / "audio.wav" if job.scene.sounds else None  # not a stale one from an earlier scene
         failed = str(result.error) if result.error is not None else ""
         self._show(job, arrays, complete=True, audio=audio, failed=failed)
         latency = time.time() - job.saved_at
         report = result.report
+        self.say_warnings(report.get("warnings", []), job.sources)  # the plan's and the run's
         if failed:
             self.say(f"result #{job.n}: error: {failed}; the trajectory up to the blow-up is shown "
                      f"(try a smaller step or --solver procedural)")
@@ -295,15 +304,18 @@ class Watch:
                      f"{job.first_latency:.2f} s); {report['frames']} frames, max constraint error "
                      f"{report['max_constraint_error']:.2e}; outputs in {job.out}/")
         if self.options.plots:
-            self._plots(job, arrays, audio)
+            written += self._plots(job, arrays, audio)
+        _clear_stale(job.out, written)
 
-    def _plots(self, job: Job, arrays: dict, audio: Path) -> None:
+    def _plots(self, job: Job, arrays: dict, audio: Path) -> list:
         try:
             from isaac_runtime.plots import write_plots
 
-            write_plots(job.out / "plots", arrays, audio if audio and audio.is_file() else None, title=job.scene.name)
+            return write_plots(job.out / "plots", arrays, audio if audio and audio.is_file() else None,
+                               title=job.scene.name)
         except ImportError as error:  # matplotlib is the optional `plots` extra
             self.say(f"plots skipped: {error} (pip install 'isaac[plots]')")
+            return []
 
     # -- files ----------------------------------------------------------------------------------------------
 
@@ -389,11 +401,18 @@ def _simulate(scene, options, on_frame):
     return run.simulate(scene, dataclasses.replace(options, on_frame=on_frame))
 
 
-def _write_outputs(scene, result, out: Path) -> None:
-    """The files `isaac run` writes."""
+def _write_outputs(scene, result, out: Path) -> list:
+    """The files `isaac run` writes; their paths."""
     from isaac_runtime import run
 
-    run.write_outputs(scene, result, out)
+    return run.write_outputs(scene, result, out)
+
+
+def _clear_stale(out: Path, written: list) -> None:
+    """What an earlier run wrote into out and this one did not (a sound the scene no longer has)."""
+    from isaac_runtime.outputs import clear_stale
+
+    clear_stale(out, written)
 
 
 def _warm_up() -> None:

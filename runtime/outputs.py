@@ -8,7 +8,7 @@ from __future__ import annotations
 import io
 import json
 import os
-import tempfile
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -58,9 +58,12 @@ class Recorder:
 
 
 def write_atomic(path: Path, data: bytes) -> None:
-    """Write to a temporary file beside path, then rename: a reader never sees half a file."""
+    """Write to a temporary file beside path, then rename: a reader never sees half a file.
+
+    The temporary is created with mode 0666 and the process's umask applies, as for any file the user's tools
+    write (mkstemp would make it 0600: a viewer.html meant to be shared would be private to its writer)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    fd, tmp = _create_beside(path)
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
@@ -69,6 +72,41 @@ def write_atomic(path: Path, data: bytes) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _create_beside(path: Path) -> tuple:
+    """(fd, name) of a new, empty file `.NAME.RANDOM` in path's folder; O_EXCL: never one that exists."""
+    while True:
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}"
+        try:
+            return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666), tmp
+        except FileExistsError:
+            continue
+
+
+# the files `isaac run` writes into its output folder, and so the ones it may clear there (nothing else)
+OWNED_FILES = ("trajectory.npz", "events.json", "ir.json", "report.json", "audio.wav", "viewer.html")
+OWNED_PLOTS = ("energy.png", "constraint_error.png", "trajectories.png", "spectrogram.png")
+
+
+def owned_paths(out: Path) -> list:
+    """Every path a run may write into out: its files, and its plots in out/plots/."""
+    return [out / name for name in OWNED_FILES] + [out / "plots" / name for name in OWNED_PLOTS]
+
+
+def clear_stale(out: Path, written) -> list:
+    """Remove what an earlier run wrote into out and this run did not (a sound, a viewer, plots), so the folder
+    holds one run's files; files of anyone else are left alone. Returns the removed paths."""
+    keep = {Path(p).resolve() for p in written}
+    removed = []
+    for path in owned_paths(Path(out)):
+        if path.is_file() and path.resolve() not in keep:
+            path.unlink()
+            removed.append(path)
+    plots = Path(out) / "plots"
+    if plots.is_dir() and not any(plots.iterdir()):
+        plots.rmdir()
+    return removed
 
 
 def write_npz(path: Path, arrays: dict) -> None:

@@ -138,7 +138,7 @@ def _optional_stages(scene: ir.Scene, plan: Plan) -> None:
         from .collide import compile_collisions
 
         plan.collisions = compile_collisions(scene, plan)  # None when every pair is excluded
-    if scene.winds and any(b.wind.enabled for b in scene.bodies):
+    if any(b.wind.enabled and b.motion == "dynamic" for b in scene.bodies):  # in a wind, or in still air
         from .wind import compile_wind
 
         plan.forces.wind = compile_wind(scene, plan)

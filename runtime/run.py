@@ -1,6 +1,13 @@
-"""`isaac run`: plan, simulate frame by frame, write the outputs. The driver reads as the list of stages."""
+"""`isaac run`: plan, simulate frame by frame, write the outputs, hold the run to its tolerances.
+
+The driver (`run_scene`) reads as the list of stages: simulate (plan, extras, step loop, report), write the files
+of ARCHITECTURE.md's contract (and the viewer, the plots), clear what an earlier run left that this one did not
+write, say what happened (warnings, errors, the summary) and return the exit code: 0, 2 for a blow-up (or a
+warning under --strict), 3 for a finished run that broke a tolerance (--max-constraint-error).
+"""
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -10,12 +17,15 @@ from pathlib import Path
 import numpy as np
 
 from isaac_lang import ir
+from isaac_lang.diagnostics import warning_diagnostic
 
-from .outputs import Recorder, write_json, write_npz
+from . import checks
+from .extras import check_extras
+from .outputs import Recorder, clear_stale, write_json, write_npz
 from .plan import PlanOptions, compile_plan
 from .simulation import NumericalError, Simulation
 
-EXIT_OK, EXIT_SCENE = 0, 2
+EXIT_OK, EXIT_SCENE, EXIT_TOLERANCE = 0, 2, 3
 
 
 @dataclass
@@ -26,6 +36,13 @@ class RunOptions:
     progress: bool = False
     folder: object = None  # the scene's folder, for the assets it names
     on_frame: object = None  # called as on_frame(simulation, recorder) after every recorded frame (watch mode)
+    # run_scene only: what else to write, what to hold the run to, how much to say
+    viewer: bool = False  # viewer.html beside the outputs
+    plots: bool = False  # plots/ (needs matplotlib, checked with the plan)
+    max_constraint_error: float | None = checks.DEFAULT_MAX_CONSTRAINT_ERROR  # m or rad; None: no limit
+    strict: bool = False  # warnings are errors (exit 2)
+    verbosity: int = 0  # -2 errors and warnings only, -1 no progress bar, 0 the summary, 1 the plan and files too
+    scene_warnings: tuple = ()  # the front end's (isaac_lang check): in report.json, already said on stderr
 
 
 @dataclass
@@ -42,6 +59,9 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     options = options or RunOptions()
     started = time.perf_counter()
     plan = compile_plan(scene, PlanOptions(options.solver, options.step, options.until, options.folder))
+    check_extras(plan, plots=options.plots)  # a missing optional package stops the run now, not after it
+    if options.verbosity > 0:
+        print(plan.describe(), file=sys.stderr)
     sim = Simulation(plan)
     audio = plan.audio.record(sim) if plan.audio is not None else None
     recorder = Recorder(plan.frame_times, plan.names)
@@ -58,33 +78,112 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
             error = failure
     energy0 = float(recorder.energy[0]) if recorder.count else sim.energy()  # the first frame's: the start
     report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
+    report["warnings"] = list(options.scene_warnings) + report["warnings"]
+    report["checks"] = {"max_constraint_error": checks.constraint_check(report, options.max_constraint_error)}
     return RunResult(sim, recorder, report, error, audio)
 
 
-def write_outputs(scene: ir.Scene, result: RunResult, out: Path) -> None:
-    """The files of ARCHITECTURE.md's contract, each written atomically; report.json last."""
-    write_npz(out / "trajectory.npz", result.recorder.arrays())
-    write_json(out / "events.json", result.simulation.events)
-    write_json(out / "ir.json", ir.to_data(scene))
+def write_outputs(scene: ir.Scene, result: RunResult, out: Path) -> list:
+    """The files of ARCHITECTURE.md's contract, each written atomically; report.json last. Returns their paths."""
+    written = [out / "trajectory.npz", out / "events.json", out / "ir.json"]
+    write_npz(written[0], result.recorder.arrays())
+    write_json(written[1], result.simulation.events)
+    write_json(written[2], ir.to_data(scene))
     if result.audio is not None:
         result.report["audio"] = result.audio.write(out / "audio.wav", result.report["wall_time"])
+        written.append(out / "audio.wav")
     write_json(out / "report.json", result.report)
+    return written + [out / "report.json"]
 
 
 def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path | None = None) -> int:
+    """`isaac run` after the scene is loaded: the stages, then the exit code (module docstring)."""
     result = simulate(scene, options)
-    write_outputs(scene, result, out)
+    written = write_outputs(scene, result, out)
+    written += write_extras(scene, result, out, options)
+    clear_stale(out, written)
+    where = f"{scene_path}" if scene_path else scene.name
+    warnings = _say_warnings(where, result.report["warnings"], options)
     if result.error is not None:
-        where = f"{scene_path}: " if scene_path else ""
-        print(f"{where}error: {result.error}\n"
-              f"hint: try a smaller step (`solver dynamics {{ step 0.5 ms }}` or --step), a lower stabilization "
-              f"frequency, or the procedural solver (--solver procedural); the trajectory up to "
-              f"t = {result.error.time:.6g} s is in {out / 'trajectory.npz'}", file=sys.stderr)
+        _say_error(where, f"{result.error}", (
+            f"try a smaller step (`solver dynamics {{ step 0.5 ms }}` or --step), a lower stabilization frequency, "
+            f"or the procedural solver (--solver procedural); the trajectory up to t = {result.error.time:.6g} s "
+            f"is in {out / 'trajectory.npz'}"))
         return EXIT_SCENE
-    r = result.report
+    _say_summary(scene, result.report, out, written, options)
+    if _broken_tolerance(where, result.report):
+        return EXIT_TOLERANCE
+    return EXIT_SCENE if warnings and options.strict else EXIT_OK
+
+
+def write_extras(scene: ir.Scene, result: RunResult, out: Path, options: RunOptions) -> list:
+    """viewer.html and plots/ when asked for; their paths."""
+    arrays = result.recorder.arrays()
+    audio = out / "audio.wav" if result.audio is not None else None
+    written = []
+    if options.viewer:
+        from .viewer import write_viewer
+
+        written.append(write_viewer(out / "viewer.html", scene, arrays, options.folder, audio=audio))
+    if options.plots:
+        from .plots import write_plots
+
+        written += write_plots(out / "plots", arrays, audio, title=scene.name)
+    return written
+
+
+def _say_warnings(where: str, warnings: list, options: RunOptions) -> list:
+    """Each warning of the plan and the run on stderr (those of the front end were said when it loaded); errors
+    under --strict. Returns every warning of the run, the front end's included."""
+    severity = "error" if options.strict else "warning"
+    said = set(options.scene_warnings)
+    for text in warnings:
+        if text not in said:
+            print(format_warning(text, where, severity), file=sys.stderr)
+    return warnings
+
+
+def format_warning(text: str, scene_path, severity: str = "warning") -> str:
+    """`file:line:col: warning: message` for a warning that opens with its own position (its file named relative
+    to the scene's folder, as the IR names it, printed as reached from here), else `scene: warning: text`."""
+    diagnostic = warning_diagnostic(text, severity)
+    pos = diagnostic.pos
+    if pos is None:
+        return f"{scene_path}: {severity}: {text}"
+    folder = Path(scene_path).parent if scene_path else Path(".")
+    if folder != Path(".") and not Path(pos.file).is_absolute():
+        diagnostic = dataclasses.replace(diagnostic, pos=dataclasses.replace(pos, file=(folder / pos.file).as_posix()))
+    return diagnostic.format()
+
+
+def _say_error(where: str, message: str, hint: str) -> None:
+    print(f"{where}: error: {message}\nhint: {hint}", file=sys.stderr)
+
+
+def _say_summary(scene: ir.Scene, r: dict, out: Path, written: list, options: RunOptions) -> None:
+    if options.verbosity < -1:  # -qq: errors and warnings only
+        return
     print(f"{scene.name}: {r['steps']} steps of {r['step']:g} s ({r['solver']}, {r['integrator']}) in "
           f"{r['wall_time']:.2f} s; max constraint error {r['max_constraint_error']:.2e}; outputs in {out}/")
-    return EXIT_OK
+    plots = [Path(p).name for p in written if Path(p).parent == out / "plots"]
+    if plots:
+        print(f"plots: {', '.join(plots)} in {out / 'plots'}/")
+    if options.verbosity > 0:
+        for path in written:
+            print(f"  wrote {path}")
+
+
+def _broken_tolerance(where: str, report: dict) -> bool:
+    """Say so on stderr when the run kept a constraint error above --max-constraint-error."""
+    check = report["checks"]["max_constraint_error"]
+    if check["ok"]:
+        return False
+    _say_error(where, f"the constraint error stays at {check['value']:.3g} (m or rad) once switched-on constraints "
+                      f"have settled (largest at t = {check['time']:.6g} s), above --max-constraint-error "
+                      f"{check['limit']:g}",
+               "constraints that cannot all hold (two nails that disagree, a body tied to two places) keep their "
+               "error: check the anchor points, or raise the limit with --max-constraint-error")
+    return True
 
 
 def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, error) -> dict:
@@ -103,6 +202,7 @@ def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, er
         "stages_run": [k for k, v in stages.items() if v], "stages_skipped": [k for k, v in stages.items() if not v],
         "linear_solvers": sorted({e.solver for e in plan.constraints.epochs} - {"none"}) if plan.constraints else [],
         "max_constraint_error": float(np.nanmax(arrays["constraint_error"])) if len(energy) else 0.0,
+        **_settled(plan, arrays),
         "energy_start": energy0,
         "energy_drift": float(np.nanmax(np.abs(energy - energy0))) if len(energy) else 0.0,
         "energy_drift_relative": float(np.nanmax(np.abs(energy - energy0)) / scale) if len(energy) else 0.0,
@@ -110,6 +210,14 @@ def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, er
         "warnings": warnings,
         "error": str(error) if error else None,
     }
+
+
+def _settled(plan, arrays: dict) -> dict:
+    """The constraint error that stays (runtime/checks.py): outside the settling windows after switch-ons."""
+    windows = checks.settling_windows(plan.scene, plan)
+    value, at = checks.settled_error(arrays["time"], arrays["constraint_error"], windows)
+    return {"constraint_error_settled": value, "constraint_error_settled_time": at,
+            "settling_windows": [list(w) for w in windows]}
 
 
 def _energy_scale(plan) -> float:

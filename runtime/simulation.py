@@ -23,7 +23,7 @@ from .core import model as M
 from .core.entries import row_errors, state_constraint_error, state_energy
 from .core.jit import CompileNotice
 from .core.record import RUNAWAY_CONSTRAINT_ERROR, Frames
-from .dynamics.integrate import DONE, RUNAWAY_BODY
+from .dynamics.integrate import CONTACT, DONE, RUNAWAY_BODY
 from .plan import Plan, PlanOptions, compile_plan
 
 # compatibility name for callers of the step loop
@@ -80,15 +80,23 @@ class Simulation:
         self._compile_notice = CompileNotice.begin(row_errors, *self._stepper_class(plan).entries)
         self.compiled = CompiledPlan(plan)
         self.stepper = self._stepper_class(plan)(self.compiled, plan)
-        self._switches = np.array(plan.constraints.switch_times() if plan.constraints else [])
+        switches = list(plan.constraints.switch_times()) if plan.constraints else []
+        if plan.collisions is not None:
+            switches += plan.collisions.window_switches()
+        self._switches = np.unique(np.array(switches, float))
         self._act = None  # the Active rows of the epoch the state is in
         self._frame_now = False  # a frame is due at the state's time (recorded before the next step)
-        self._status = np.zeros(3, np.int64)
-        # collisions: detection and impulses after every step (runtime.collide), built only when the plan has them
+        self._epoch_in = ()  # the epoch (and windowed exclusions) the collision stage was told of
+        self._status = np.zeros(4, np.int64)
+        # collisions (runtime.collide): contact rows in the step, impacts and changes of contact when it stops;
+        # built only when the plan has them
         self.collider = plan.collisions.start(self) if plan.collisions is not None else None
         # observers called after every step, e.g. the audio stage recording motion signals
         self.observers: list = []
         self._place_kinematic()
+        if self.collider is not None:
+            self._active()
+            self.collider.start()
 
     # -- construction -------------------------------------------------------------------------------------
 
@@ -194,7 +202,7 @@ class Simulation:
         s = self.state
         taken = self.stepper.run(self._active(), s.y, s.t, tau, 1, np.zeros(0, np.int64), self._frame_buffer(0),
                                  self._status)
-        if self._status[0] != DONE:
+        if self._status[0] not in (DONE, CONTACT):  # (a change of contact is the caller's to look at)
             s.t += taken * tau
             raise self._failure()
 
@@ -216,7 +224,7 @@ class Simulation:
     def _advance(self, t_target: float, sink) -> None:
         s = self.state
         while True:
-            act = self._active()
+            self._active()
             # a frame at the start, or at a switch: recorded here, in the epoch that begins
             if sink is not None and sink.next < len(sink.times) and sink.times[sink.next] <= s.t + 1e-12:
                 self._record_now(sink)
@@ -225,7 +233,7 @@ class Simulation:
             ahead = self._switches[self._switches > s.t + 1e-12]
             boundary = min(t_target, float(ahead[0])) if ahead.size else t_target
             cuts = [(boundary, False)] if sink is None else self._cuts(sink, boundary, boundary < t_target - 1e-12)
-            self._run_pieces(act, cuts, sink)
+            self._run_pieces(cuts, sink)
             s.t = boundary  # no drift from summing h
 
     def _cuts(self, sink, boundary: float, switch: bool) -> list:
@@ -238,7 +246,7 @@ class Simulation:
             cuts.append((boundary, False))
         return cuts
 
-    def _run_pieces(self, act, cuts: list, sink) -> None:
+    def _run_pieces(self, cuts: list, sink) -> None:
         """Step through the cut points [(time, is a frame)]: consecutive intervals with the same number and length
         of steps go to the kernel in one call, which records the frames among them."""
         s, h = self.state, self.plan.step
@@ -246,7 +254,7 @@ class Simulation:
         per_call = self.compiled.table.steps_per_call(self.stepper.grid)
         if sink is not None and sink.on_frame is not None:
             per_call = min(per_call, ON_FRAME_STEPS)  # the caller hears of the frames (and can stop) every so often
-        if self.collider is not None or self.observers:
+        if self.observers:
             per_call = 1  # stages still in Python need the state after every step
         while i < len(cuts):
             span = cuts[i][0] - s.t
@@ -258,13 +266,14 @@ class Simulation:
                    <= 1e-12 * h_piece):
                 intervals += 1
             piece = cuts[i:i + intervals]
-            self._run_steps(act, h_piece, count, [frame for _, frame in piece], sink, per_call)
+            self._run_steps(h_piece, count, [frame for _, frame in piece], sink, per_call)
             s.t = piece[-1][0]
             i += intervals
 
-    def _run_steps(self, act, h: float, count: int, is_frame: list, sink, per_call: int) -> None:
+    def _run_steps(self, h: float, count: int, is_frame: list, sink, per_call: int) -> None:
         """count steps of h per interval, over the intervals whose ends are frames or not (is_frame), recording
-        the frames among them (in the kernel; or here, after the stages that still run in Python)."""
+        the frames among them (in the kernel; or here, after the stages that still run in Python). The Active
+        rows are the epoch's as the collision stage last left them (self._act)."""
         s = self.state
         total = count * len(is_frame)
         frame_ends = {(k + 1) * count for k in range(len(is_frame)) if is_frame[k]}
@@ -279,32 +288,33 @@ class Simulation:
             frame_step = np.array(sorted(end - done for end in frame_ends if (done < end or end == 0)
                                          and end <= done + steps and not in_python), np.int64)
             frames = self._frame_buffer(len(frame_step))
-            if self.collider is not None:
-                self.collider.before_step(h, self._epoch())
-            taken = self.stepper.run(act, s.y, t0 + done * h, h, steps, frame_step, frames, self._status)
+            taken = self.stepper.run(self._act, s.y, t0 + done * h, h, steps, frame_step, frames, self._status)
             self._compile_notice.end()
             done += taken
             s.steps += taken
             s.t = t0 + done * h
-            self._deliver(frames, frame_step, taken, sink)
-            if self._status[0] != DONE:
+            stopped = self._status[0] == CONTACT
+            # a stop for the collision stage ends the call before the frame of that step is recorded
+            self._deliver(frames, frame_step, taken - stopped, sink)
+            if self._status[0] not in (DONE, CONTACT):
                 raise self._failure()
+            if stopped:  # the collision stage looks at the step that just ended
+                self.collider.on_stop(int(self._status[3]), int(self._status[2]), h, self._epoch(s.t - 0.5 * h))
+                self._active()
             if in_python:
-                self._after_step(h, act)
-                if done in frame_ends and sink is not None:
-                    self._record_now(sink)
+                self._after_step(h)
+            if (in_python or stopped) and done in frame_ends and sink is not None:
+                self._record_now(sink)
 
     def _python_stages(self) -> bool:
-        """Whether a stage still runs in Python after every step (collisions, observers)."""
-        return self.collider is not None or bool(self.observers)
+        """Whether a stage still runs in Python after every step (observers)."""
+        return bool(self.observers)
 
     def _epoch(self, t: float | None = None):
         c = self.plan.constraints
         return c.epoch_at(self.state.t if t is None else t) if c is not None else None
 
-    def _after_step(self, h: float, act) -> None:
-        if self.collider is not None:
-            self.collider.after_step(h, self._epoch(self.state.t - 0.5 * h))
+    def _after_step(self, h: float) -> None:
         for observe in self.observers:
             observe(self, h)
 
@@ -312,17 +322,22 @@ class Simulation:
 
     def _frame_buffer(self, count: int) -> Frames:
         n1 = self.plan.n + 1
-        return Frames(np.zeros((count, n1, D.PACKED)), np.zeros(count), np.zeros(count), np.zeros(count, np.int64))
+        K = len(self.compiled.model.constraints.family)
+        return Frames(np.zeros((count, n1, D.PACKED)), np.zeros(count), np.zeros(count), np.zeros(count, np.int64),
+                      np.zeros((count, K, 8)))
 
-    def _deliver(self, frames: Frames, frame_step, taken: int, sink) -> None:
+    def _deliver(self, frames: Frames, frame_step, recorded: int, sink) -> None:
+        """Hand on the frames the kernel recorded: those after steps 0..recorded."""
         if sink is None:
             return
         n = self.plan.n
         for f in range(len(frame_step)):
-            if frame_step[f] > taken:
+            if frame_step[f] > max(recorded, 0):
                 break
             if sink.recorder is not None:
                 sink.recorder.record_packed(frames.y[f, :n], float(frames.error[f]), float(frames.energy[f]))
+            if self.collider is not None:
+                self.collider.frame_events(float(sink.times[sink.next]), frames.contact[f])
             sink.next += 1
             if sink.on_frame is not None:
                 sink.on_frame(self, sink.recorder)
@@ -330,6 +345,8 @@ class Simulation:
     def _record_now(self, sink) -> None:
         if sink.recorder is not None:
             sink.recorder.record(self.state, self.check_constraints(), self.energy())
+        if self.collider is not None:
+            self.collider.frame_events(float(sink.times[sink.next]), None)
         sink.next += 1
         if sink.on_frame is not None:
             sink.on_frame(self, sink.recorder)
@@ -339,7 +356,15 @@ class Simulation:
     def _active(self):
         c = self.plan.constraints
         epoch = c.epoch_at(self.state.t + 1e-12) if c is not None else None
-        act = self.compiled.active(epoch, self.state.y, self.state.t)
+        if self.collider is not None:
+            phase = (id(epoch), self.plan.collisions.excluded_at(self.state.t + 1e-12).tobytes())
+            if phase != self._epoch_in:
+                self._epoch_in = phase
+                self.collider.on_epoch(epoch, self.state.t + 1e-12)
+        lasting = self.collider.lasting if self.collider is not None else None
+        act = self.compiled.active(epoch, self.state.y, self.state.t,
+                                   lasting.active_rows() if lasting is not None else None,
+                                   lasting.version if lasting is not None else 0)
         if act is not self._act:
             if self._act is not None:
                 self.compiled.leave(self._act)
@@ -357,7 +382,7 @@ class Simulation:
                 y[3:7], y[10:13] = table[0, c + M.KIN_Q:c + M.KIN_Q + 4], table[0, c + M.KIN_W:c + M.KIN_W + 3]
 
     def _failure(self) -> NumericalError:
-        code, step, which = (int(v) for v in self._status)
+        code, step, which = (int(v) for v in self._status[:3])
         s = self.state
         if code == RUNAWAY_BODY:
             y = s.y[which]

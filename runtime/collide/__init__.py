@@ -23,7 +23,7 @@ import numpy as np
 
 from ..signals import asset_folders
 from .narrow import needs_fcl
-from .pairs import count_pairs, excluded_keys
+from .pairs import count_pairs, excluded_keys, exclusion_pairs, pair_keys
 from .shapes import KIND_NAMES, build_table
 
 # contacts are kept (and act) while the surfaces are up to this far apart, m; boxes grow by it in the broad phase
@@ -43,7 +43,7 @@ class CollisionPlan:
 
     table: object
     collidable: np.ndarray
-    excluded: np.ndarray
+    excluded: np.ndarray  # the pairs excluded for the whole run (the broad phase's, at the start)
     pairs: int
     reasons: dict
     friction: np.ndarray
@@ -52,6 +52,20 @@ class CollisionPlan:
     fcl_bodies: np.ndarray
     margin: float
     kinds: dict
+    windows: tuple = ()  # ((start, end, keys), ...): the pairs an `exclude` with a window excludes in it
+
+    @property
+    def always_excluded(self) -> np.ndarray:
+        return self.excluded
+
+    def excluded_at(self, t: float) -> np.ndarray:
+        """The keys of the pairs a windowed `exclude` excludes at time t."""
+        keys = [k for start, end, k in self.windows if start <= t < end]
+        return np.unique(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
+
+    def window_switches(self) -> list:
+        """The times a windowed exclusion begins or ends."""
+        return sorted({float(v) for start, end, _ in self.windows for v in (start, end) if np.isfinite(v)})
 
     def start(self, simulation):
         from .collider import Collider
@@ -98,8 +112,12 @@ def compile_collisions(scene, plan, folder=None) -> CollisionPlan | None:
                "by `exclude`": len(np.setdiff1d(keys["excluded"], keys["joined"])),
                "neither dynamic": still * (still - 1) // 2}
     counted = {int(k): int(c) for k, c in zip(*np.unique(kinds, return_counts=True))}
+    index = scene.body_index()
+    windows = tuple((ex.start, ex.end, pair_keys(np.array(exclusion_pairs(ex, index), np.int64).reshape(-1, 2),
+                                                 len(scene.bodies)))
+                    for ex in scene.exclusions if ex.start > plan.start or ex.end < plan.end)
     return CollisionPlan(table, collidable, excluded, pairs, reasons, friction, restitution, has, fcl_bodies,
-                         CONTACT_MARGIN, counted)
+                         CONTACT_MARGIN, counted, windows)
 
 
 def _kinds(scene, collidable) -> np.ndarray:

@@ -1,14 +1,14 @@
-"""The collision stage of one run: after every step, find the contacts, locate impacts in time, and apply the
-impulses. Both plans use it: re-integrating part of a step is the simulation's `integrate` (the plan's own step).
+"""The collision stage of one run. The compiled step holds the lasting contacts itself (their rows: contacts.py,
+core/contact.py) and stops when it sees a change it cannot handle (a pair coming near, a contact pulling, slipping,
+stopping, leaving its face, a pair in contact turning); this stage then looks:
 
-    before_step: remember the state at the start of the step
-    after_step:  scan      contacts at the end of the step (broad phase on boxes swept over the step)
-                 locate    an impact that happened inside the step (a pair apart at the start, interpenetrating
-                           at the end): rewind to the start, integrate to the time of impact
-                           (regula falsi on the pair's distance, re-integrating from the start each time),
-                           resolve there, integrate the rest of the step; repeat for the next impact
-                 resolve   impacts (generations, restitution), resting contact and friction, position
-                           correction (response.py); events (events.py)
+    scan      contacts at the end of the step (broad phase on boxes swept over the step, narrow phase)
+    locate    an impact that happened inside the step (a pair apart at the start, interpenetrating at the end):
+              rewind to the start, integrate to the time of impact (regula falsi on the pair's distance,
+              re-integrating from the start each time), resolve there, integrate the rest of the step; repeat
+    resolve   impacts (generations, restitution, the joints exact: response.py), then a resting pass that leaves
+              no contact approaching; events (events.py)
+    keep      the touching points that do not part become (or stay) the step's contact rows
 
 Tunnelling: the end-of-step scan would miss a small fast body that crossed a thin one within one step. When a
 pair's relative travel over the step exceeds the sum of their smallest half-extents, its path is sampled at
@@ -25,11 +25,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.build import PAIR_TURN
+from ..core.contact import LIFTS, SLIPS, STOPS
+from ..core.data import COUNTER_TURNED_BACK
 from ..rotation import quat_to_matrix, world_inverse_inertia
+from .contacts import ContactSet
 from .events import EventLog
 from .narrow import closed_form
-from .pairs import BroadPhase
-from .response import SLOP, Bodies, Contacts, Joints, Response, contact_rows, project_joints, row_velocity
+from .pairs import BroadPhase, is_excluded, pair_keys
+from .shapes import SPHERE, reach
+from .response import Bodies, Contacts, Joints, Response, contact_rows, row_velocity
 
 # an impact is rewound to its time when the bodies interpenetrate by more than this at the end of the step, m
 TOI_TOLERANCE = 1e-6
@@ -50,11 +55,16 @@ RESTING_SPEED = 1e-3  # m/s
 RESTING_STEPS = 2.0
 # contacts approaching slower than this (round-off) with nothing to correct need no solve at all, m/s
 AT_REST_SPEED = 1e-9
+# a stop inside a step is found from a shorter step the slip survives, halved at most this often
+STOP_HALVINGS = 20
+# the least turn (rad) after which a pair in contact is looked at again (a feature touching but not held)
+MIN_TURN = 1e-6
 
 
 class Collider:
-    """The per-run stage: plan.collisions.start(simulation) builds it; the step loop calls before_step and
-    after_step. stats counts the impacts located in time and the crossings the sweep test caught."""
+    """The per-run stage: plan.collisions.start(simulation) builds it; the simulation calls `start` once,
+    `on_epoch` when it enters an epoch and `on_stop` when the compiled step asks for a look. stats counts the
+    impacts located in time and the crossings the sweep test caught; `lasting` holds the contact rows."""
 
     def __init__(self, cplan, sim):
         self.cp, self.sim, self.plan = cplan, sim, sim.plan
@@ -69,47 +79,187 @@ class Collider:
 
             self.fcl = FclPairs(cplan.table, cplan.fcl_bodies)
         self.log = EventLog(self.plan.names, sim.events, self.plan.frame_times)
+        self.lasting = ContactSet(sim, cplan)
         self.gravity = float(np.linalg.norm(self.plan.gravity))  # |g|, m/s2
         self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * self.plan.step)
         self.stats = {"impacts located": 0, "tunnelling caught": 0}
+        self.reach = reach(cplan.table)
 
     # -- the hooks of the step loop -------------------------------------------------------------------------
 
-    def before_step(self, h: float, epoch) -> None:
+    def start(self) -> None:
+        """The contacts the run starts with (a stack standing on a floor)."""
         s = self.sim.state
-        for buffer, array in zip(self.saved, (s.x, s.q, s.v, s.w)):
-            buffer[...] = array
-        self.t_saved = s.t
+        self._save_start()
+        self._keep_contacts()
 
-    def after_step(self, h: float, epoch) -> None:
+    def on_epoch(self, epoch, t: float) -> None:
+        """A new epoch (or a windowed `exclude` began or ended at t): a pair joined by a constraint is excluded
+        while the constraint is on (and collides before and after), a pair an `exclude` names while its window
+        lasts (always, without one)."""
+        n = self.plan.n
+        keys = np.union1d(self.cp.always_excluded, self.cp.excluded_at(t))
+        if epoch is not None and epoch.active.size:
+            rb = self.plan.constraints.row_bodies[epoch.active]
+            both = rb[(rb[:, 0] >= 0) & (rb[:, 1] >= 0) & (rb[:, 0] != rb[:, 1])]
+            keys = np.union1d(keys, pair_keys(both, n))
+        self.broad.excluded = keys
+        pairs = self.sim.compiled.model.pairs
+        now = is_excluded(pair_keys(np.stack([pairs.a, pairs.b], 1), n), keys)
+        pairs.state[now] = 2
+        pairs.state[~now & (pairs.state == 2)] = 0
+        if len(self.lasting.contacts):
+            excluded = {(int(a), int(b)) for a, b in zip(pairs.a[now], pairs.b[now])}
+            kept = {k: c for k, c in self.lasting.contacts.items()
+                    if (min(c.a, c.b), max(c.a, c.b)) not in excluded}
+            if len(kept) != len(self.lasting.contacts):
+                self.lasting.contacts = kept
+                self.lasting.write()
+
+    def on_stop(self, code: int, which: int, h: float, epoch) -> None:
+        """The step of h that ended at the state's time asked for a look (core/contact.py's codes). A contact
+        that lifts or slips was wrong for the whole step: the step is taken again without it, or sliding. One that
+        stops stops inside the step: the step is taken again up to the time its slip is 0 (found by the secant:
+        under constant friction the slip falls linearly), sticking from there (in the procedural plan the
+        friction impulse of a substep stopped it: it sticks where it is)."""
+        s = self.sim.state
+        if code == LIFTS or code == SLIPS:
+            lam = self.sim.compiled.scratch.lam.copy()
+            self._rewind(h)
+            if code == LIFTS:
+                self.lasting.remove(which)
+            else:
+                self.lasting.to_sliding(which, lam, s.q)
+            self.sim._active()
+            self._advance(h, epoch)
+        elif code == STOPS and self.plan.solver == "procedural":
+            # its friction impulse took the slip away inside a substep (core/contact.py friction_impulses)
+            self.lasting.to_sticking(which, s.x, s.q)
+        elif code == STOPS:
+            t_end = s.t
+            self._rewind(h)
+            self._advance(self._stop_time(which, h, epoch), epoch)
+            self.lasting.to_sticking(which, s.x, s.q)
+            self.sim._active()
+            self._advance(t_end - s.t, epoch)
+            s.t = t_end
+        else:  # NEAR or LEAVES: something new may touch
+            self._look(h, epoch)
+
+    def _rewind(self, h: float) -> None:
+        """The live state back to the start of the step of h that just ended (the compiled loop keeps it)."""
+        s = self.sim.state
+        self._save_start()
+        self.t_saved = s.t - h
+        self._restore_saved()
+
+    def _restore_saved(self) -> None:
+        s = self.sim.state
+        for array, buffer in zip((s.x, s.q, s.v, s.w), self.saved):
+            array[...] = buffer
+        s.t = self.t_saved
+
+    def _stop_time(self, which: int, h: float, epoch) -> float:
+        """When, within the step of h from the (restored) start, the slip of sliding contact `which` reaches 0:
+        the slip falls linearly while it slides (constant friction), so the secant through the start and a
+        shorter step that the slip survives (halved until it does) finds it. Leaves the live state at the start."""
+        s, counters = self.sim.state, self.sim.compiled.scratch.counters
+        before = self.lasting.slip_along_t1(which, s.x, s.q, s.v, s.w)
+        tau, after = h, before
+        for _ in range(STOP_HALVINGS):
+            tau *= 0.5
+            self._advance(tau, epoch)
+            after = self.lasting.slip_along_t1(which, s.x, s.q, s.v, s.w)
+            self._restore_saved()
+            if counters[COUNTER_TURNED_BACK] == 0 and 0.0 < after < before:
+                break
+        # slip(t) = before + (after - before) t / tau = 0
+        return min(h, tau * before / (before - after)) if before > after else 0.0
+
+    def frame_events(self, t: float, table) -> None:
+        """The "contact" events of the frame that ends at t, from the compiled step's record of the contacts
+        (table (K, 8)), or from the live state when the frame is recorded here (table None)."""
+        if not self.lasting.instance_of:
+            return
+        if table is None:
+            from ..core.entries import frame_contacts
+
+            c = self.sim.compiled
+            out = np.zeros((1, len(c.model.constraints.family), 8))
+            frame_contacts(self.sim._act, c.model.constraints, c.scratch.param, self.sim.state.y, c.scratch.R,
+                           c.scratch.impulse, out)
+            table = out[0]
+        cons = self.sim.compiled.model.constraints
+        bodies = {k: (int(cons.body[k, 0]), int(cons.body[k, 1])) for k in self.lasting.instance_of.values()}
+        self.log.frame(t, table, bodies)
+
+    def _save_start(self) -> None:
+        """The start of the last step (the compiled loop keeps it), where a time-of-impact search rewinds to."""
+        n = self.plan.n
+        start = self.sim.compiled.scratch.start
+        for buffer, columns in zip(self.saved, (slice(0, 3), slice(3, 7), slice(7, 10), slice(10, 13))):
+            buffer[...] = start[:n, columns]
+
+    def _look(self, h: float, epoch) -> None:
         s = self.sim.state
         t_end = s.t
+        self._save_start()
+        self.t_saved = t_end - h
         self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * h)
-        scan = self.scan()
-        if scan is NOTHING_NEAR:  # no pair: no contact, no impact, nothing to resolve (most steps)
-            self.log.flush(t_end)
-            return
+        scan = self.scan(always=True)
         for _ in range(MAX_TOI_PER_STEP):
             hit = self._earliest_hit(scan, t_end - self.t_saved)
             if hit is None:
                 break
             pair, bracket, _ = hit
             self._locate(pair, bracket, epoch)  # the live state is now at the time of impact
-            self.resolve(self.scan(), s.t, h, epoch, final=False, rewound=True)
-            self.before_step(h, epoch)  # the new start of what is left of the step
+            self.resolve(self.scan(always=True), s.t, rewound=True, epoch=epoch)
+            self._keep_contacts()
+            self.sim._active()
+            self._save_start_here()  # the new start of what is left of the step
             self._advance(t_end - s.t, epoch)
             s.t = t_end
-            scan = self.scan()
-        self.resolve(scan, t_end, h, epoch, final=True, rewound=False)
-        self.log.flush(t_end)
+            scan = self.scan(always=True)
+        self.resolve(scan, t_end, rewound=False, epoch=epoch)
+        self._keep_contacts()
+
+    def _keep_contacts(self) -> None:
+        """The lasting contacts from the touching points at the live state; then, for each pair in contact, the
+        turn after which it is looked at again: before the gap of its nearest other feature can close (a
+        rocking box's lifted edge: a turn of a brings a point at most reach * a nearer)."""
+        s = self.sim.state
+        self.lasting.update(self._touching(self.scan(always=True)), s.x, s.q, s.v, s.w)
+        pairs = self.sim.compiled.model.pairs
+        touching = np.flatnonzero(pairs.state == 1)
+        if not len(touching):
+            return
+        R = quat_to_matrix(s.q)
+        kind = self.cp.table.kind
+        for p in touching.tolist():
+            i, j = int(pairs.a[p]), int(pairs.b[p])
+            if kind[i] == SPHERE and kind[j] == SPHERE:
+                continue  # nothing new comes from turning
+            gap = self.distance(i, j, s.x, R, self._known_features(i, j))
+            arm = max(self.reach[i], self.reach[j], 1e-300)
+            pairs.turn[p] = min(PAIR_TURN, max(gap, 0.0) / arm + MIN_TURN, self.cp.margin / arm)
+
+    def _save_start_here(self) -> None:
+        s = self.sim.state
+        for buffer, array in zip(self.saved, (s.x, s.q, s.v, s.w)):
+            buffer[...] = array
+        self.t_saved = s.t
+
+    def _touching(self, scan):
+        contacts = scan.contacts
+        return None if contacts is None else contacts.subset(contacts.depth >= -TOUCHING)
 
     # -- detection ----------------------------------------------------------------------------------------------
 
-    def scan(self) -> "Scan":
+    def scan(self, always: bool = False) -> "Scan":
         """Contacts at the live state; the broad phase uses boxes swept from the saved start of the step.
-        When no dynamic body's swept box comes near anything (most steps), nothing more is computed."""
+        When no dynamic body's swept box comes near anything, nothing more is computed (unless `always`)."""
         s = self.sim.state
-        if not self.broad.anything_near(s.x, self._rotations, self.saved[0]):
+        if not always and not self.broad.anything_near(s.x, self._rotations, self.saved[0]):
             return NOTHING_NEAR
         R, R0 = quat_to_matrix(s.q), quat_to_matrix(self.saved[1])
         pairs = self.broad.pairs((s.x, R), (self.saved[0], R0))
@@ -132,7 +282,8 @@ class Collider:
         pair = np.concatenate([np.full(len(f[2]), p) for f, p in parts])
         mu, e = self.cp.mix(a, b)
         return Contacts(a, b, np.concatenate([f[0] for f, _ in parts]), np.concatenate([f[1] for f, _ in parts]),
-                        np.concatenate([f[2] for f, _ in parts]), pair, mu, e)
+                        np.concatenate([f[2] for f, _ in parts]), pair, mu, e,
+                        np.concatenate([np.asarray(f[3], np.int64) for f, _ in parts]))
 
     def pair_contacts(self, i, j, x, R, margin):
         """(points, normals, depths, features, a, b) of bodies i and j, normals from b toward a."""
@@ -144,10 +295,17 @@ class Collider:
         a, b = (j, i) if swapped else (i, j)
         return (*function(table, a, b, x, R, margin), a, b)
 
-    def distance(self, i, j, x, R) -> float:
-        """Signed distance of bodies i and j (negative: interpenetrating by that much)."""
-        depths = self.pair_contacts(i, j, x, R, math.inf)[2]
+    def distance(self, i, j, x, R, known=frozenset()) -> float:
+        """Signed distance of bodies i and j (negative: interpenetrating by that much); with `known` (features),
+        of their other features only."""
+        points, normals, depths, features, a, b = self.pair_contacts(i, j, x, R, math.inf)
+        if known:
+            depths = depths[[int(f) not in known for f in features]]
         return -float(np.max(depths)) if len(depths) else math.inf
+
+    def _known_features(self, i, j) -> frozenset:
+        """The features of the lasting contacts of the pair (i, j)."""
+        return frozenset(key[2] for key in self.lasting.contacts if {key[0], key[1]} == {i, j})
 
     # -- time of impact -----------------------------------------------------------------------------------------
 
@@ -172,6 +330,17 @@ class Collider:
                 if d0 > TOI_TOLERANCE:
                     bracket = (0.0, span, d0, -deep[p])
                     best = _earlier(best, (i, j), bracket)
+                    continue
+                # a pair in contact: a feature of it that was apart and is inside now (a corner of a rocking
+                # body coming down) met inside the step too
+                known = self._known_features(i, j)
+                if known:
+                    d0, d1 = self.distance(i, j, x0, R0, known), self.distance(i, j, x1, R1, known)
+                    if d1 < -TOI_TOLERANCE and d0 > 0.0:
+                        best = _earlier(best, (i, j, known), (0.0, span, d0, d1))
+                    elif d1 < -TOI_TOLERANCE and d0 > -TOUCHING:
+                        # touching but not held at the start (it was parting): it met at the start
+                        best = _earlier(best, (i, j, known), (0.0, 0.0, d0, d0 - 1.0))
             else:  # even a pair found just apart now may have crossed (ending within the margin beyond)
                 bracket = self._sweep(i, j, x0, R0, x1, R1, span)
                 if bracket is not None:
@@ -239,7 +408,7 @@ class Collider:
         s.t = self.t_saved
         self._advance(tau, epoch)
         s.t = self.t_saved + tau
-        return self.distance(pair[0], pair[1], s.x, quat_to_matrix(s.q))
+        return self.distance(pair[0], pair[1], s.x, quat_to_matrix(s.q), pair[2] if len(pair) > 2 else frozenset())
 
     def _advance(self, tau: float, epoch) -> None:
         """Integrate the live state from its time s.t to s.t + tau with the plan's own step."""
@@ -250,9 +419,9 @@ class Collider:
 
     # -- response ---------------------------------------------------------------------------------------------
 
-    def resolve(self, scan, t, h, epoch, final: bool, rewound: bool) -> None:
-        """Impulses for the contacts of `scan` at time t (the live state); with final, the position correction
-        too (the end of the step). Events: an impact's time is t when rewound, else interpolated."""
+    def resolve(self, scan, t, rewound: bool, epoch) -> None:
+        """Impulses for the touching contacts of `scan` at time t (the live state): impacts, then the resting pass
+        (restitution 0: nothing is left approaching). Impact events: at t when rewound, else interpolated."""
         contacts = scan.contacts
         if contacts is not None:
             contacts = contacts.subset(contacts.depth >= -TOUCHING)
@@ -265,29 +434,13 @@ class Collider:
         response = Response(contacts, s.x, bodies, self._joints(t, epoch))
         response.impacts(self.resting_speed)
         response.resting()
-        if final:
-            moved = response.correct_positions(s.x, s.q)
-            if len(moved) and plan.constraints is not None:
-                self._joint_velocities(t, epoch, moved)
         self.log.record(contacts, response.outcome, self._impact_time(scan, contacts, t, rewound))
 
     def _at_rest(self, contacts) -> bool:
-        """Nothing approaching and nothing to push apart: lam = 0 solves every row (touching balls of the
-        cradle before the strike), so the solve is skipped."""
+        """Nothing approaching: lam = 0 solves every row (touching balls of the cradle before the strike)."""
         s = self.sim.state
         u = row_velocity(contact_rows(contacts, s.x, contacts.normal), np.stack([contacts.a, contacts.b], 1), s.v, s.w)
-        return bool(np.all(u >= -AT_REST_SPEED) and np.all(contacts.depth <= SLOP))
-
-    def _joint_velocities(self, t, epoch, moved) -> None:
-        """A position correction turned bodies, and with them their joints' Jacobians: put their velocities
-        back on the joints (J V + ct = 0 at the new pose), or the joint drifts by |w| |turn| |arm| per second."""
-        joints = self._joints(t, epoch)
-        if not len(joints.J):
-            return
-        s, plan = self.sim.state, self.plan
-        bodies = Bodies(s.v, s.w, plan.inv_mass, world_inverse_inertia(quat_to_matrix(s.q), plan.inv_inertia_body),
-                        plan.dynamic)
-        project_joints(joints, bodies, moved)
+        return bool(np.all(u >= -AT_REST_SPEED))
 
     def _joints(self, t, epoch) -> Joints:
         c = self.plan.constraints

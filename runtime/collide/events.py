@@ -14,8 +14,9 @@ One event per body pair, a dict:
 
 The rule that keeps sustained contact from flooding the list: an impact (approach faster than the resting
 speed) is an event at once; a pair that stays in contact with a non-zero impulse gives one "contact" event per
-output frame, at the frame's time, with the frame's total impulse and its latest sliding speed. A scraping
-block at 100 frames/s is therefore a 100 Hz signal of sliding speed and normal impulse.
+output frame, at the frame's time, with the frame's total impulse (its contact rows' normal force over the
+frame, recorded by the compiled step) and its sliding speed at the frame. A scraping block at 100 frames/s is
+therefore a 100 Hz signal of sliding speed and normal impulse.
 """
 from __future__ import annotations
 
@@ -28,13 +29,14 @@ MIN_CONTACT_IMPULSE = 1e-9
 class EventLog:
     def __init__(self, names: list, events: list, frame_times: np.ndarray):
         self.names, self.events, self.frames = names, events, np.asarray(frame_times, float)
-        self.next_frame = 1  # frame 0 is the start: contacts are first reported at the end of the first frame
-        self.held: dict = {}  # (i, j) -> the frame's accumulated contact
 
     def record(self, contacts, outcome, impact_time) -> None:
-        """contacts: response.Contacts, outcome: response.Outcome at one pose; impact_time(pair index) -> s."""
+        """The impacts among contacts (response.Contacts) with their outcome (response.Outcome) at one pose;
+        impact_time(pair index) -> s."""
         for pair in np.unique(contacts.pair):
             mine = np.flatnonzero(contacts.pair == pair)
+            if not outcome.impact[mine].any():
+                continue
             a, b = int(contacts.a[mine[0]]), int(contacts.b[mine[0]])
             impulse = outcome.impulse[mine]
             total = float(impulse.sum())
@@ -44,28 +46,32 @@ class EventLog:
             normal /= max(np.linalg.norm(normal), 1e-300)
             if a > b:  # declaration order; the normal keeps pointing toward bodies[0]
                 a, b, normal = b, a, -normal
-            if outcome.impact[mine].any():
-                self.events.append(self._event(impact_time(int(pair)), a, b, point, normal, total,
-                                               float(outcome.slip_before[mine].max()),
-                                               float(outcome.approach[mine].max()), "impact"))
-            elif total > MIN_CONTACT_IMPULSE:
-                held = self.held.get((a, b))
-                if held is None:
-                    held = self.held[(a, b)] = {"impulse": 0.0}
-                held["impulse"] += total
-                held.update(point=point, normal=normal, slip=float(outcome.slip_after[mine].max()),
-                            approach=float(outcome.approach[mine].max()))
+            self.events.append(self._event(impact_time(int(pair)), a, b, point, normal, total,
+                                           float(outcome.slip_before[mine].max()),
+                                           float(outcome.approach[mine].max()), "impact"))
 
-    def flush(self, t: float) -> None:
-        """At a frame time: one contact event per pair held during the frame."""
-        if self.next_frame >= len(self.frames) or t < self.frames[self.next_frame] - 1e-12:
-            return
-        while self.next_frame < len(self.frames) and self.frames[self.next_frame] <= t + 1e-12:
-            self.next_frame += 1
-        for (a, b), held in self.held.items():
-            self.events.append(self._event(t, a, b, held["point"], held["normal"], held["impulse"], held["slip"],
-                                           held["approach"], "contact"))
-        self.held.clear()
+    def frame(self, t: float, table: np.ndarray, bodies: dict) -> None:
+        """One "contact" event per pair pressing during the frame that ends at t: table (K, 8) per contact
+        instance (impulse over the frame, slip speed, point, normal: core/contact.py record_contacts), bodies
+        {instance: (a, b)}."""
+        pairs: dict = {}
+        for k, (a, b) in bodies.items():
+            impulse = float(table[k, 0])
+            if impulse <= 0.0:
+                continue
+            held = pairs.setdefault((min(a, b), max(a, b)), {"impulse": 0.0, "point": np.zeros(3),
+                                                           "normal": np.zeros(3), "slip": 0.0})
+            sign = 1.0 if a < b else -1.0  # the normal keeps pointing toward bodies[0]
+            held["impulse"] += impulse
+            held["point"] = held["point"] + impulse * table[k, 2:5]
+            held["normal"] = held["normal"] + sign * impulse * table[k, 5:8]
+            held["slip"] = max(held["slip"], float(table[k, 1]))
+        for (a, b), held in pairs.items():
+            if held["impulse"] <= MIN_CONTACT_IMPULSE:
+                continue
+            normal = held["normal"] / max(np.linalg.norm(held["normal"]), 1e-300)
+            self.events.append(self._event(t, a, b, held["point"] / held["impulse"], normal, held["impulse"],
+                                           held["slip"], 0.0, "contact"))
 
     def _event(self, time, a, b, point, normal, impulse, slip, approach, kind) -> dict:
         return {"time": float(time), "bodies": [self.names[a], self.names[b]],

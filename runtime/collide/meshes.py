@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .shapes import BOX, CAPSULE, CYLINDER, MESH, PLANE, SPHERE
+from .shapes import BOX, CAPSULE, CYLINDER, FCL_POINT, MESH, PLANE, SPHERE, VERTEX_OF_B
 
 # most contact points fcl returns for a pair of triangle meshes
 MAX_MESH_CONTACTS = 8
@@ -270,23 +270,29 @@ class FclPairs:
                 length = np.linalg.norm(n)
                 if length > 1e-12:  # triangle-triangle contacts of BVH meshes may come without a normal
                     found.append((np.asarray(c.pos, float), n / length, float(c.penetration_depth)))
+        # a vertex inside (or within the margin) is a touch with a place on each body; fcl's points (somewhere
+        # in the overlap) only where none is (an edge across an edge), and its nearest points where nothing is
+        normal = _unit(x[a] - x[b])
         if found:
-            parts = self._fcl_points(a, b, x, found)
-            normal = parts[0][1][0]
-            parts += self._vertices_inside(a, b, x, R, margin, normal)
+            fcl_points = self._fcl_points(a, b, x, found)
+            normal = fcl_points[1][0]
+        parts = self._vertices_inside(a, b, x, R, margin, normal)
+        if not parts and found:
+            parts = [fcl_points]
+        if parts:
             if self._triangles(a) or self._triangles(b):
                 parts = _consistent(parts)
-            points, normals, depths = (np.concatenate(p) for p in zip(*parts))
-            return points, normals, depths, np.arange(len(depths))
+            points, normals, depths, features = (np.concatenate(p) for p in zip(*parts))
+            return points, normals, depths, features
         distance_result = fcl.DistanceResult()
         d = fcl.distance(oa, ob, self.distance_request, distance_result)
         if d > margin:
-            return np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]]), np.array([-d]), np.zeros(1, np.int64)
+            return np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]]), np.array([-d]), np.array([FCL_POINT])
         pa, pb = (np.asarray(p, float) for p in distance_result.nearest_points)
         n = pa - pb
         length = np.linalg.norm(n)
         n = n / length if length > 1e-12 else _unit(x[a] - x[b])
-        return (0.5 * (pa + pb))[None], n[None], np.array([-d]), np.zeros(1, np.int64)
+        return (0.5 * (pa + pb))[None], n[None], np.array([-d]), np.array([FCL_POINT])
 
     def _triangles(self, i) -> bool:
         """Body i is a non-convex mesh (fcl treats it as loose triangles)."""
@@ -302,7 +308,7 @@ class FclPairs:
         if self._triangles(a) or self._triangles(b):
             flip = normals @ (x[a] - x[b]) < 0
             normals[flip] *= -1.0
-        return [(points, normals, depths)]
+        return points, normals, depths, FCL_POINT + np.arange(len(depths))
 
     def _place(self, i: int, x, R):
         obj = self.objects[i]
@@ -313,7 +319,7 @@ class FclPairs:
         """Vertices of one body within margin of the inside of the other, as contacts (a cylinder's vertices
         are four points on each cap's rim, the first toward the other body along fcl's normal)."""
         parts = []
-        for mine, other, sign in ((a, b, 1.0), (b, a, -1.0)):
+        for mine, other, sign, base in ((a, b, 1.0, 0), (b, a, -1.0, VERTEX_OF_B)):
             vertices = _vertices(self.table, mine, x, R, -sign * normal)
             if vertices is None:
                 continue
@@ -326,7 +332,8 @@ class FclPairs:
                 # the normal from b to a is the other's outward normal when the vertex is a's, else its opposite
                 n = sign * outward[keep]
                 depth = -d[keep]
-                parts.append((vertices[keep] - sign * 0.5 * depth[:, None] * n, n, depth))
+                # the contact point midway between the vertex and the surface it is under
+                parts.append((vertices[keep] + sign * 0.5 * depth[:, None] * n, n, depth, base + np.flatnonzero(keep)))
         return parts
 
 
@@ -337,7 +344,8 @@ def _consistent(parts) -> list:
     mean = normals.sum(axis=0)
     if np.linalg.norm(mean) < 1e-12:
         return parts
-    return [(p[0][keep], p[1][keep], p[2][keep]) for p in parts for keep in [p[1] @ mean > 0] if keep.any()]
+    return [tuple(column[keep] for column in p) for p in parts for keep in [p[1] @ mean > 0] if keep.any()]
+
 
 
 def _unit(v):

@@ -3,8 +3,10 @@
 Exclusion, once: a pair never collides when
   * either body has `collide off` (it is not in the collidable list at all);
   * neither body is dynamic (static-static, static-kinematic, kinematic-kinematic: nothing could respond);
-  * a constraint joins the two bodies (at any time of the run: a joint's parts overlap by design);
+  * a constraint joins the two bodies for the whole run (a joint's parts overlap by design);
   * the scene excludes them (`exclude a, b, c`: every pair within the group).
+A pair joined by a constraint for part of the run only is excluded while the constraint is on (the collision
+stage follows the epochs: collider.on_epoch), and collides before and after.
 The explicit exclusions are kept as sorted pair keys i * n + j (i < j), so a lookup is a binary search and the
 memory is O(excluded pairs), never O(n^2).
 
@@ -32,27 +34,39 @@ GRID_QUANTILE = 0.9
 
 # ---- exclusion (once) ------------------------------------------------------------------------------------------
 
+def exclusion_pairs(exclusion, index: dict) -> list:
+    """The (i, j) pairs an `exclude` names."""
+    members = sorted({index[b] for b in exclusion.bodies})
+    return [(p, q) for k, p in enumerate(members) for q in members[k + 1:]]
+
+
 def excluded_keys(scene, plan, collidable: np.ndarray) -> dict:
-    """Sorted keys of the explicitly excluded pairs that would otherwise count (both collidable, one dynamic),
-    by reason: {"joined": keys, "excluded": keys}."""
+    """Sorted keys of the pairs excluded for the whole run that would otherwise count (both collidable, one
+    dynamic), by reason: {"joined": keys (by a constraint on for the whole run), "excluded": keys (by an
+    `exclude` without a window)}."""
     n = len(scene.bodies)
     index = scene.body_index()
     ok = np.zeros(n, bool)
     ok[collidable] = True
     joined = []
     if plan.constraints is not None:
-        rb = plan.constraints.row_bodies
-        both = (rb[:, 0] >= 0) & (rb[:, 1] >= 0) & (rb[:, 0] != rb[:, 1])
+        c = plan.constraints
+        rb = c.row_bodies
+        # rows on for the whole run
+        always = (c.row_start <= plan.start) & (c.row_end >= plan.end)
+        both = (rb[:, 0] >= 0) & (rb[:, 1] >= 0) & (rb[:, 0] != rb[:, 1]) & always
         joined = [tuple(p) for p in rb[both]]
         # a term may name two bodies without a row touching both (e.g. gear-to-weight of a static gear)
         for constraint in scene.constraints:
+            if constraint.start > plan.start or constraint.end < plan.end:
+                continue
             for term in constraint.terms:
                 named = [index[b] for b in term.bodies if b in index]
                 joined += [(p, q) for k, p in enumerate(named) for q in named[k + 1:] if p != q]
     grouped = []
     for exclusion in scene.exclusions:
-        members = sorted({index[b] for b in exclusion.bodies})
-        grouped += [(p, q) for k, p in enumerate(members) for q in members[k + 1:]]
+        if exclusion.start <= plan.start and exclusion.end >= plan.end:  # (a windowed one: the collider's)
+            grouped += exclusion_pairs(exclusion, index)
     out = {}
     for reason, pairs in (("joined", joined), ("excluded", grouped)):
         keys = pair_keys(np.array(pairs, np.int64).reshape(-1, 2), n)

@@ -49,7 +49,8 @@ SLOP = 1e-6
 @dataclass
 class Contacts:
     """k contact points. a, b (k,) body indices; point, normal (k,3) (normal from b toward a); depth (k,) m;
-    pair (k,) index of the body pair in the step's pair list; mu, e (k,) friction and restitution."""
+    pair (k,) index of the body pair in the step's pair list; mu, e (k,) friction and restitution; feature (k,)
+    which corner, end or edge made the point (narrow.py), None when not known."""
 
     a: np.ndarray
     b: np.ndarray
@@ -59,6 +60,7 @@ class Contacts:
     pair: np.ndarray
     mu: np.ndarray
     e: np.ndarray
+    feature: np.ndarray | None = None
 
     def __len__(self):
         return len(self.a)
@@ -358,7 +360,7 @@ def apply_impulses(J, slots, lam, bodies: Bodies, v, w) -> None:
 
 def _take(c: Contacts, index) -> Contacts:
     return Contacts(c.a[index], c.b[index], c.point[index], c.normal[index], c.depth[index], c.pair[index],
-                    c.mu[index], c.e[index])
+                    c.mu[index], c.e[index], None if c.feature is None else c.feature[index])
 
 
 def _islands(c: Contacts, joints: Joints, bodies: Bodies) -> list:

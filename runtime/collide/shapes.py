@@ -15,6 +15,10 @@ import numpy as np
 NONE, SPHERE, BOX, CAPSULE, CYLINDER, PLANE, MESH = range(7)
 KINDS = {"sphere": SPHERE, "box": BOX, "capsule": CAPSULE, "cylinder": CYLINDER, "plane": PLANE, "mesh": MESH}
 KIND_NAMES = {v: k for k, v in KINDS.items()}
+# the features of the contacts fcl finds (stable from look to look but for fcl's own points): a vertex of a (its
+# index), a vertex of b (VERTEX_OF_B + its index: the contact's point is b's), a point of fcl's (FCL_POINT + k)
+VERTEX_OF_B = 1 << 20
+FCL_POINT = 1 << 21
 
 # box corner signs, corner c = half * CORNER_SIGNS[c]; bit k of c set -> +half along axis k
 CORNER_SIGNS = np.array([[1.0 if c & (1 << k) else -1.0 for k in range(3)] for c in range(8)])
@@ -99,3 +103,11 @@ def boxes_of(table: ShapeTable, index: np.ndarray, xi: np.ndarray, Ri: np.ndarra
         extent[round_] = np.abs(axis) * hl + side
     extent += margin
     return centre - extent, centre + extent
+
+
+def reach(table: ShapeTable) -> np.ndarray:
+    """(n,) how far a point of each shape can be from its centre (m): what turning by an angle a can bring a point
+    nearer by at most reach * a (a plane: none of its points comes nearer by turning)."""
+    finite = np.isfinite(table.half).all(axis=1)
+    box = np.where(finite, np.linalg.norm(np.nan_to_num(table.half, posinf=0.0), axis=1), 0.0)
+    return box + np.linalg.norm(table.centre, axis=1) + table.radius + table.half_length

@@ -10,6 +10,10 @@ from .entries import row_errors
 from .structure import build_active, empty_active
 from .timetable import TimeTable
 
+# a pair in contact is looked at again when it has turned since its contacts were found by as much as brings a
+# point of either body margin nearer (margin / reach; the collision stage narrows it to the gap of the pair's
+# other features), and at most this much (rad)
+PAIR_TURN = 0.05
 # a row that switches on with |C| above this (m or rad), or |dC/dt| above omega times this, assembles along its
 # constraint's curve (Baumgarte at its frequency and damping ratio) before it is held; within both it is held
 # from the start (the projection closes what is left). A velocity row (gears) is held from the start.
@@ -27,8 +31,10 @@ class CompiledPlan:
         wind, wind_column, wind_count = self._wind(plan)
         c = plan.constraints
         cons = M.pack_constraints(c, self._drivers(plan)) if c is not None else M.empty_constraints()
+        shapes, pairs, margin = self._collisions(plan)
         self.model = M.Model(plan.n, M.build_bodies(plan), kinematic, M.build_springs(plan), loads, cons, wind,
-                             wind_column, wind_count)
+                             wind_column, wind_count, shapes, pairs, margin)
+        self.joint_instances, self.joint_rows = len(cons.family), len(cons.row_instance)
         self.scratch = D.allocate_scratch(plan.n, cons.param, len(cons.row_instance))
         self._actives: dict = {}  # id(epoch) -> (epoch, Active)
         self.row_held = np.zeros(len(cons.row_instance), np.bool_)  # per global row: held when last active
@@ -72,34 +78,83 @@ class CompiledPlan:
         column = self.table.add(count, lambda times: speeds_table(wind, times))
         return wind_model(wind), column, count
 
+    def _collisions(self, plan) -> tuple:
+        """(Shapes, Pairs, margin) of the collision stage, padded with the world row; no pairs without one."""
+        n, cp = plan.n, plan.collisions
+        if cp is None:
+            return M.no_shapes(n), M.no_pairs(), 0.0
+        table = cp.table
+        pad = lambda a: np.concatenate((np.asarray(a, float), np.zeros((1,) + np.shape(a)[1:])))  # noqa: E731
+        shapes = M.Shapes(np.concatenate((table.kind, [M.SHAPE_NONE])).astype(np.int64), pad(table.radius),
+                          np.ascontiguousarray(np.nan_to_num(pad(table.half), posinf=1e300)), pad(table.half_length),
+                          pad(table.normal), pad(table.centre))
+        a, b = candidate_pairs(cp, plan.dynamic)
+        round_ = (table.kind[a] == M.SHAPE_SPHERE) & (table.kind[b] == M.SHAPE_SPHERE)
+        from ..collide.shapes import reach
+
+        arm = np.maximum(np.maximum(reach(table)[a], reach(table)[b]), 1e-300)
+        turn = np.minimum(PAIR_TURN, cp.margin / arm)
+        turn = np.where(round_, 10.0, turn)  # two spheres: nothing new comes from turning
+        relative = np.tile([1.0, 0.0, 0.0, 0.0], (len(a), 1))
+        return shapes, M.Pairs(a, b, np.zeros(len(a), np.int64), relative, turn), float(cp.margin)
+
+    def reserve_contacts(self, instances: int, rows: int) -> None:
+        """Room for at least `instances` contact instances and `rows` contact rows after the joints'."""
+        cons = self.model.constraints
+        have_i, have_r = len(cons.family) - self.joint_instances, len(cons.row_instance) - self.joint_rows
+        if instances <= have_i and rows <= have_r:
+            return
+        grow_i, grow_r = max(instances, 2 * have_i, 8) - have_i, max(rows, 2 * have_r, 24) - have_r
+        cons = M.with_capacity(cons, grow_i, grow_r)
+        self.model = self.model._replace(constraints=cons)
+        old = self.scratch
+        self.scratch = D.allocate_scratch(self.plan.n, cons.param, len(cons.row_instance), len(old.Lx))
+        self.scratch.param[:len(old.param)] = old.param
+        self.row_held = np.concatenate((self.row_held, np.zeros(grow_r, np.bool_)))
+        self.row_seen = np.concatenate((self.row_seen, np.zeros(grow_r, np.bool_)))
+        self._actives.clear()
+
     # -- epochs -----------------------------------------------------------------------------------------------
 
-    def active(self, epoch, y: np.ndarray, t: float):
-        """The Active rows of an epoch (None: no constraints), built when the run first enters it: a row that was
-        active before keeps its held flag; a new one is held if it is on its manifold (ASSEMBLE_ABOVE)."""
-        if epoch is None or not epoch.active.size:
+    def active(self, epoch, y: np.ndarray, t: float, contacts: np.ndarray | None = None, version: int = 0):
+        """The Active rows of an epoch and of the contacts (their global rows, written as of `version`), built
+        when the run first enters that combination: a joint row that was active before keeps its held flag; a new
+        one is held if it is on its manifold (ASSEMBLE_ABOVE); contact rows are always held."""
+        joints = np.asarray(epoch.active, np.int64) if epoch is not None else np.zeros(0, np.int64)
+        contacts = np.zeros(0, np.int64) if contacts is None else np.asarray(contacts, np.int64)
+        if not joints.size and not contacts.size:
             return self.empty
-        entry = self._actives.get(id(epoch))
+        key = (id(epoch), version)
+        entry = self._actives.get(key)
         if entry is not None and entry[0] is epoch:
             return entry[1]
         cons = self.model.constraints
-        rows = np.asarray(epoch.active, np.int64)
+        held_joints = self._held(joints, y, t) if joints.size else np.zeros(0, np.bool_)
+        rows = np.concatenate((joints, contacts))
+        held = np.concatenate((held_joints, np.ones(len(contacts), np.bool_)))
+        act = build_active(cons, rows, self.model.bodies.dynamic, held,
+                           dense=epoch is not None and epoch.solver == "dense")
+        if len(act.Li) > len(self.scratch.Lx):
+            self.scratch = self.scratch._replace(Lx=np.zeros(len(act.Li)))
+        if len(self._actives) > 64:  # (contact sets come and go: keep the cache small)
+            self._actives.clear()
+        self._actives[key] = (epoch, act)
+        return act
+
+    def _held(self, rows, y, t) -> np.ndarray:
+        cons = self.model.constraints
         C, rate = self._errors_at(rows, y, t)
         omega = np.sqrt(np.maximum(cons.ks[rows], 1.0))
         on_manifold = (np.abs(C) <= ASSEMBLE_ABOVE) & (np.abs(rate) <= ASSEMBLE_ABOVE * omega)
         fresh = ~self.row_seen[rows]
-        held = np.where(fresh, on_manifold | cons.velocity_only[rows], self.row_held[rows]) & cons.settles[rows]
-        act = build_active(cons, rows, self.model.bodies.dynamic, held, dense=epoch.solver == "dense")
-        if len(act.Li) > len(self.scratch.Lx):
-            self.scratch = self.scratch._replace(Lx=np.zeros(len(act.Li)))
-        self._actives[id(epoch)] = (epoch, act)
-        return act
+        return np.where(fresh, on_manifold | cons.velocity_only[rows], self.row_held[rows]) & cons.settles[rows]
 
     def leave(self, act) -> None:
-        """Remember which rows of an epoch being left were held (for the epochs after it)."""
-        if len(act.rows):
-            self.row_seen[act.rows] = True
-            self.row_held[act.rows] = act.held
+        """Remember which joint rows of an epoch being left were held (for the epochs after it)."""
+        joints = act.rows < self.joint_rows
+        if joints.any():
+            self.row_seen[act.rows[joints]] = True
+            self.row_held[act.rows[joints]] = act.held[joints]
 
     def _errors_at(self, rows, y, t) -> tuple:
         """(C, dC/dt = J v + ct) of the given rows at state y, time t."""
@@ -114,3 +169,15 @@ class CompiledPlan:
     def tabulate(self, t0: float, h: float, steps: int, grid: int) -> np.ndarray:
         """The time table of `steps` steps of h from t0, `grid` rows per step."""
         return self.table.evaluate(t0, h / grid, grid * steps + 1)
+
+
+def candidate_pairs(cp, dynamic) -> tuple:
+    """(a, b) of every pair of collidable bodies with a dynamic one that no `exclude` removes, a < b."""
+    from isaac_runtime.collide.pairs import is_excluded, pair_keys
+
+    c = np.asarray(cp.collidable, np.int64)
+    i, j = np.triu_indices(len(c), 1)
+    a, b = c[i], c[j]
+    n = len(dynamic)
+    keep = (dynamic[a] | dynamic[b]) & ~is_excluded(pair_keys(np.stack([a, b], 1), n), cp.always_excluded)
+    return np.ascontiguousarray(a[keep], np.int64), np.ascontiguousarray(b[keep], np.int64)

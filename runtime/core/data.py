@@ -17,11 +17,12 @@ PACKED = 13
 STAGES = 4  # slopes kept by the integrators (RK4's four)
 
 Scratch = namedtuple("Scratch", "R inv_inertia force torque acc param C J ct bias MJ Jd rhs lam dlam diag work dropped "
-                                "include Lx delta k y0 ys air block counters")
+                                "include Lx delta k y0 ys start R0 friction impulse air block counters")
 # the buffers of one small block (an instance's rows, at most 3) of the procedural projection
 Block = namedtuple("Block", "K rhs x J D dx")
-# counters: [0] evaluations whose solve dropped a dependent row, [1] projections done
-COUNTER_RANK, COUNTER_PROJECTIONS = 0, 1
+# counters: [0] evaluations whose solve dropped a dependent row, [1] projections done, [2] 1 + the first sliding
+# contact whose slip a stage of the step found turned back (0: none; core/contact.py)
+COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_TURNED_BACK = 0, 1, 2
 
 
 def initial_state(plan) -> np.ndarray:
@@ -45,7 +46,9 @@ def allocate_scratch(n: int, param: np.ndarray, rows: int, fill: int = 1) -> Scr
         Jd=np.zeros((m, 2, 6)),
         rhs=np.zeros(m), lam=np.zeros(m), dlam=np.zeros(m), diag=np.zeros(m), work=np.zeros(m), dropped=np.zeros(m, np.bool_),
         include=np.ones(m, np.bool_), Lx=np.zeros(max(fill, 1)), delta=np.zeros((b, 6)),
-        k=np.zeros((STAGES, b, PACKED)), y0=np.zeros((b, PACKED)), ys=np.zeros((b, PACKED)), air=np.zeros((b, 4)),
+        k=np.zeros((STAGES, b, PACKED)), y0=np.zeros((b, PACKED)), ys=np.zeros((b, PACKED)),
+        start=np.zeros((b, PACKED)), R0=np.tile(np.eye(3), (b, 1, 1)), friction=np.zeros((b, 6)),
+        impulse=np.zeros(max(len(param), 1)), air=np.zeros((b, 4)),
         block=Block(np.zeros((3, 3)), np.zeros(3), np.zeros(3), np.zeros((3, 2, 6)), np.zeros((3, 2, 6)),
                     np.zeros(6)),
         counters=np.zeros(4, np.int64))

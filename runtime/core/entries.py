@@ -3,6 +3,7 @@ energy and constraint error of a state, rows evaluated at a state."""
 from __future__ import annotations
 
 from .bodies import energy, rotations
+from .contact import record_contacts
 from .jit import entry
 from .record import constraint_error
 from .rows import apply_drivers, write_rows
@@ -28,3 +29,11 @@ def row_errors(m, instances, s, y, table):
     rotations(y, s.R)
     apply_drivers(m.constraints, s.param, table, 0)
     write_rows(instances, m.constraints, s.param, y, s.R, s.C, s.J, s.ct, s.bias)
+
+
+@entry
+def frame_contacts(act, cons, param, y, R, impulse, out):
+    """out (1, K, 8) <- the active contacts at state y (core/contact.py record_contacts), their impulse
+    accumulators back to 0."""
+    rotations(y, R)
+    record_contacts(act, cons, param, y, R, impulse, out, 0)

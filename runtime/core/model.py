@@ -16,9 +16,12 @@ ROWS each), so the plan's row metadata (windows, gains, `-` removals) indexes th
                  column, size (d,): param[instance, slot:slot+size] <- table[:, column:column+size] (moving
                  nails: P, dP/dt, d2P/dt2); row_instance, row_component (M,), velocity_only (M,), ks, kd (M,) Baumgarte gains,
                  compliance (M,) the procedural plan's softness, settles (M,) a row may be held (projected)
-                 once assembled (not under `stabilization baumgarte`)
+                 once assembled (not under `stabilization baumgarte`), soft (M,) a relative regularization of
+                 the row's diagonal (contacts: core/contact.py)
     wind         runtime/wind/kernels.WindModel; its winds' speeds s(t) are table columns wind_column ..
                  wind_column + wind_count
+    shapes, pairs, margin   collision shapes and the pairs the collision stage watches between its calls
+                 (below); the contact instances are the last ones of `constraints` (contact.py)
 """
 from __future__ import annotations
 
@@ -28,11 +31,11 @@ import numpy as np
 
 from isaac_runtime.constraints import layout as L
 
-# constraint families (codes of constraints.family)
-NAIL, POINT, ORIENT, PLANE, GEAR, ROPE, ELEMENT = range(7)
+# constraint families (codes of constraints.family); the contact families are written by the collision stage
+NAIL, POINT, ORIENT, PLANE, GEAR, ROPE, ELEMENT, CONTACT, CONTACT_SPHERES = range(9)
 FAMILY_OF_LAYOUT = {L.PointToNail: NAIL, L.PointToPoint: POINT, L.Orientation: ORIENT, L.PointOnPlane: PLANE,
                     L.GearToGear: GEAR, L.GearToWeight: ROPE, L.Element: ELEMENT}
-ROWS_OF_FAMILY = (3, 3, 1, 1, 1, 1, 1)
+ROWS_OF_FAMILY = (3, 3, 1, 1, 1, 1, 1, 3, 1)  # (a contact without friction has 1 row: cons.rows says)
 VELOCITY_FAMILIES = (GEAR, ROPE)
 PARAMS = 24  # width of a parameter row
 
@@ -45,6 +48,14 @@ PLANE_ORIGIN_RATE, PLANE_ORIGIN_ACCEL, PLANE_NORMAL_RATE, PLANE_NORMAL_ACCEL = 9
 GEAR_AXIS_A, GEAR_AXIS_B, GEAR_RADIUS_A, GEAR_RADIUS_B = 0, 3, 6, 7
 ROPE_ARM, ROPE_DIRECTION = 0, 3
 ELEMENT_AXIS, ELEMENT_ROTATIONAL, ELEMENT_OFFSET, ELEMENT_REFERENCE = 0, 3, 4, 5
+# a contact of body a's point (or a sphere's centre and radius) with a face of b (or a plane): the point in a's
+# frame, the face's origin, normal and tangents in b's frame (b's face axes: friction rows and the face's
+# bounds), the anchor of sticking friction in b's frame, the radius (0 for a point), the face's half extents
+# along the tangents (inf: no edge), the friction coefficient of sliding (0: not sliding) and of the cone
+CONTACT_POINT, CONTACT_ORIGIN, CONTACT_NORMAL, CONTACT_T1, CONTACT_T2, CONTACT_ANCHOR = 0, 3, 6, 9, 12, 15
+CONTACT_RADIUS, CONTACT_HALF1, CONTACT_HALF2, CONTACT_SLIDE_MU, CONTACT_MU = 18, 19, 20, 21, 22
+# a contact of two spheres: their centres in their frames, the sum of their radii
+SPHERES_A, SPHERES_B, SPHERES_REACH = 0, 3, 6
 
 # columns of a kinematic body in the time table
 KIN_X, KIN_V, KIN_A, KIN_Q, KIN_W, KIN_ALPHA, KIN_WIDTH = 0, 3, 6, 9, 13, 16, 19
@@ -56,8 +67,27 @@ Springs = namedtuple("Springs", "body point stiffness rest damping")
 Loads = namedtuple("Loads", "body point column")
 Constraints = namedtuple("Constraints", "family body first_row rows param driver_instance driver_slot "
                                         "driver_column driver_size row_instance row_component velocity_only ks kd "
-                                        "compliance settles")
-Model = namedtuple("Model", "n bodies kinematic springs loads constraints wind wind_column wind_count")
+                                        "compliance settles soft")
+# collision shapes (the codes of runtime/collide/shapes.py): kind (n+1,), radius (n+1,), half (n+1,3) half edges or
+# bounding half-extents, half_length (n+1,) of a capsule's or cylinder's straight part, normal (n+1,3) a plane's,
+# centre (n+1,3) of the bounding box, all in the body frame
+SHAPE_NONE, SHAPE_SPHERE, SHAPE_BOX, SHAPE_CAPSULE, SHAPE_CYLINDER, SHAPE_PLANE, SHAPE_MESH = range(7)
+Shapes = namedtuple("Shapes", "kind radius half half_length normal centre")
+# the pairs that may collide: a, b (P,); state (P,) 0 apart (the broad phase watches it), 1 in contact (its rows
+# hold it; it is watched for turning), 2 excluded now; relative (P,4) conj(q_b) q_a when its contacts were found;
+# turn (P,) how far it may turn before they are looked for again (rad); written by the collision stage
+Pairs = namedtuple("Pairs", "a b state relative turn")
+Model = namedtuple("Model", "n bodies kinematic springs loads constraints wind wind_column wind_count shapes pairs "
+                            "margin")
+
+
+def no_shapes(n: int) -> Shapes:
+    return Shapes(np.zeros(n + 1, np.int64), _f(n + 1), _f((n + 1, 3)), _f(n + 1), _f((n + 1, 3)), _f((n + 1, 3)))
+
+
+def no_pairs() -> Pairs:
+    z = np.zeros(0, np.int64)
+    return Pairs(z, z.copy(), z.copy(), _f((0, 4)), _f(0))
 
 
 def _f(shape) -> np.ndarray:
@@ -128,13 +158,33 @@ def pack_constraints(cplan, drivers) -> Constraints:
                        _i(d[:, 0]), _i(d[:, 1]), _i(d[:, 2]), _i(d[:, 3]), row_instance, row_component,
                        np.ascontiguousarray(velocity_only, dtype=np.bool_), np.asarray(cplan.row_ks, float).copy(),
                        np.asarray(cplan.row_kd, float).copy(), np.asarray(cplan.row_compliance, float).copy(),
-                       np.full(M, getattr(cplan, "stabilization", "projection") != "baumgarte", np.bool_))
+                       np.full(M, getattr(cplan, "stabilization", "projection") != "baumgarte", np.bool_), _f(M))
+
+
+def with_capacity(cons: Constraints, instances: int, rows: int) -> Constraints:
+    """The same table with room for `instances` more instances and `rows` more rows after its own (zero-filled;
+    the collision stage writes its contacts there)."""
+    def grow(array, extra):
+        shape = (array.shape[0] + extra,) + array.shape[1:]
+        out = np.zeros(shape, array.dtype)
+        out[:len(array)] = array
+        return out
+
+    fields = {}
+    for name, array in cons._asdict().items():
+        if name.startswith("driver_"):
+            fields[name] = array
+        elif name in ("family", "body", "first_row", "rows", "param"):
+            fields[name] = grow(array, instances)
+        else:
+            fields[name] = grow(array, rows)
+    return Constraints(**fields)
 
 
 def empty_constraints() -> Constraints:
     z = np.zeros(0, np.int64)
     return Constraints(z, np.zeros((0, 2), np.int64), z, z, _f((0, PARAMS)), z, z, z, z, z, z,
-                       np.zeros(0, np.bool_), _f(0), _f(0), _f(0), np.zeros(0, np.bool_))
+                       np.zeros(0, np.bool_), _f(0), _f(0), _f(0), np.zeros(0, np.bool_), _f(0))
 
 
 def instance_count(fam) -> int:

@@ -18,6 +18,7 @@ The slow, obvious oracle is tests/runtime/rows_reference.py.
 from __future__ import annotations
 
 from . import model as M
+from .contact import contact_rows
 from .jit import inlined, kernel
 from .vec import add3, centripetal, cross3, dot3, quat_conj, quat_mul, rotate, rotate_t, row3, scale3, sub3
 
@@ -199,6 +200,8 @@ def instance_rows(k, cons, param, y, R, C, J, ct, bias):
         _gear_row(row, a, b, param, k, R, C, J, ct, bias)
     elif family == M.ROPE:
         _rope_row(row, a, b, param, k, C, J, ct, bias)
+    elif family == M.CONTACT or family == M.CONTACT_SPHERES:
+        contact_rows(k, cons, param, y, R, C, J, ct, bias)
     elif param[k, M.ELEMENT_ROTATIONAL] != 0.0:
         _element_rotation_row(row, a, b, param, k, y, R, C, J, ct, bias)
     else:

@@ -46,9 +46,10 @@ def inverse_mass_times_J(act, cons, bodies, inv_inertia, J, MJ):
 
 
 @kernel
-def assemble(act, J, MJ, include, everything, Lx, diagonal):
-    """Lx <- the lower triangle of A = J M^-1 J^T in L's pattern (fill entries 0), diagonal (m,) <- A's diagonal;
-    rows not included (unless `everything`) get an identity row and column."""
+def assemble(act, J, MJ, include, everything, soft, Lx, diagonal):
+    """Lx <- the lower triangle of A = J M^-1 J^T in L's pattern (fill entries 0), each diagonal entry times
+    (1 + soft) (soft (M,) per global row), diagonal (m,) <- that diagonal; rows not included (unless `everything`)
+    get an identity row and column."""
     for p in range(len(Lx)):
         Lx[p] = 0.0
     for c in range(len(act.cp_dest)):
@@ -62,6 +63,8 @@ def assemble(act, J, MJ, include, everything, Lx, diagonal):
     for j in range(len(act.rows)):
         if not everything and not include[j]:
             Lx[act.Lp[j]] = 1.0
+        else:
+            Lx[act.Lp[j]] *= 1.0 + soft[act.rows[j]]
         diagonal[j] = Lx[act.Lp[j]]
 
 

@@ -19,6 +19,7 @@ Active (a named tuple of arrays, the kernels' view of an epoch):
     rows (m,)             the active rows (global row numbers) in elimination order
     held (m,)             the row is kept on its manifold by projection (else it is still assembling, and its
                           Baumgarte terms act): written by the kernels
+    local (M,)            the position in `rows` of every global row (-1: not active)
     Lp (m+1,), Li (nnz,)  L in compressed columns, each column's rows ascending, the diagonal first
     Rp (m+1,), Rk, Rpos   L by rows below the diagonal: for row j, the columns k < j with L[j,k] != 0 and where
                           L[j,k] is in the value array
@@ -32,7 +33,7 @@ from collections import defaultdict, namedtuple
 
 import numpy as np
 
-Active = namedtuple("Active", "instances rows held Lp Li Rp Rk Rpos cp_i cp_j cp_ri cp_si cp_rj cp_sj cp_dest")
+Active = namedtuple("Active", "instances rows held local Lp Li Rp Rk Rpos cp_i cp_j cp_ri cp_si cp_rj cp_sj cp_dest")
 
 
 def _ints(values) -> np.ndarray:
@@ -61,7 +62,9 @@ def build_active(cons, active_rows: np.ndarray, dynamic: np.ndarray, held=None, 
         position = {r: i for i, r in enumerate(rows)}
         for r, h in zip(active_rows.tolist(), np.asarray(held, bool).tolist()):
             flags[position[r]] = h
-    return Active(_ints(sorted(set(instances))), _ints(rows), flags, Lp, Li, Rp, Rk, Rpos, ci, cj,
+    local = np.full(len(cons.row_instance), -1, np.int64)
+    local[global_rows] = np.arange(m)
+    return Active(_ints(sorted(set(instances))), _ints(rows), flags, local, Lp, Li, Rp, Rk, Rpos, ci, cj,
                   _ints(global_rows[ci]), si, _ints(global_rows[cj]), sj, dest)
 
 
@@ -165,5 +168,5 @@ def _couplings(slots: dict, Lp: np.ndarray, Li: np.ndarray) -> tuple:
 
 def empty_active() -> Active:
     z = np.zeros(0, np.int64)
-    return Active(z, z, np.zeros(0, np.bool_), np.zeros(1, np.int64), z, np.zeros(1, np.int64), z, z, z, z, z, z,
+    return Active(z, z, np.zeros(0, np.bool_), z, np.zeros(1, np.int64), z, np.zeros(1, np.int64), z, z, z, z, z, z,
                   z, z, z)

@@ -2,6 +2,8 @@
 
     M a = F + J^T lambda,   (J M^-1 J^T) lambda = -bias - J M^-1 F - [kd (J v + ct) + ks C]   (PHYSICS.md section 2)
 
+F includes the friction of sliding contacts, which depends on their lambda_n (core/contact.py).
+
 The bracket (Baumgarte's stabilization) acts only on rows that are still assembling (a constraint that switched on
 with its points apart, pulling them together along C'' + kd C' + ks C = 0 at the constraint's own frequency and
 damping ratio). Rows on their manifold ("held") are kept there by the projection after each step
@@ -14,6 +16,8 @@ from __future__ import annotations
 
 from ..core import model as M
 from ..core.bodies import place_kinematic, rotations, world_inverse_inertia
+from ..core.data import COUNTER_TURNED_BACK
+from ..core.contact import FRICTION_ITERATIONS, FRICTION_TOL, sliding_forces
 from ..core.forces import add_gyroscopic, add_loads, add_springs, weights
 from ..core.jit import entry, inlined, kernel
 from ..core.rows import evaluate_rows, row_motion
@@ -55,23 +59,81 @@ def unconstrained(m, s, table, j, acc):
             acc[b, 3 + e] = table[j, c + M.KIN_ALPHA + e]
 
 
-@inlined
-def constrain(m, act, s, y, table, j, acc):
-    """acc += M^-1 J^T lambda, lambda from the multiplier equation (module docstring)."""
+@kernel
+def _right_hand_side(m, act, s, y, acc):
+    """rhs (m,) of the active rows for the accelerations acc (the free ones, with any friction):
+    rhs = -bias - J acc  [- kd (J v + ct) - ks C while the row assembles]."""
     cons = m.constraints
-    evaluate_rows(m, act, s, y, table, j)
-    inverse_mass_times_J(act, cons, m.bodies, s.inv_inertia, s.J, s.MJ)
     for i in range(len(act.rows)):
         r = act.rows[i]
-        # rhs = -bias - J a_free  [- kd (J v + ct) - ks C while the row assembles]
         rhs = -s.bias[r] - row_motion(cons, r, y, acc, s.J, 0)
         if not act.held[i]:
             rhs -= cons.kd[r] * (row_motion(cons, r, y, y, s.J, 7) + s.ct[r]) + cons.ks[r] * s.C[r]
         s.rhs[i] = rhs
-    assemble(act, s.J, s.MJ, s.include, True, s.Lx, s.diag)
+
+
+@kernel
+def _add_friction(m, act, s, y, acc):
+    """acc += M^-1 (the sliding contacts' friction for the current s.lam); whether any contact slides (its
+    friction depends on lambda_n: the solve must be repeated, even where this lambda_n gave none)."""
+    turned_back = sliding_forces(act, m.constraints, s.param, y, s.R, s.lam, act.local, s.friction)
+    if turned_back >= 0 and s.counters[COUNTER_TURNED_BACK] == 0:
+        s.counters[COUNTER_TURNED_BACK] = turned_back + 1
+    bodies = m.bodies
+    for b in range(len(y) - 1):
+        if not bodies.dynamic[b]:
+            continue
+        im, I = bodies.inv_mass[b], s.inv_inertia
+        for c in range(3):
+            acc[b, c] += im * s.friction[b, c]
+            acc[b, 3 + c] += I[b, c, 0] * s.friction[b, 3] + I[b, c, 1] * s.friction[b, 4] + I[b, c, 2] * s.friction[b, 5]
+    cons = m.constraints
+    for i in range(len(act.instances)):
+        k = act.instances[i]
+        if cons.family[k] == M.CONTACT and s.param[k, M.CONTACT_SLIDE_MU] > 0.0:
+            return True
+    return False
+
+
+@kernel
+def _remove_friction(m, s, y, acc):
+    """acc -= M^-1 s.friction (undo _add_friction)."""
+    bodies = m.bodies
+    for b in range(len(y) - 1):
+        if not bodies.dynamic[b]:
+            continue
+        im, I = bodies.inv_mass[b], s.inv_inertia
+        for c in range(3):
+            acc[b, c] -= im * s.friction[b, c]
+            acc[b, 3 + c] -= I[b, c, 0] * s.friction[b, 3] + I[b, c, 1] * s.friction[b, 4] + I[b, c, 2] * s.friction[b, 5]
+
+
+@inlined
+def constrain(m, act, s, y, table, j, acc):
+    """acc += M^-1 (J^T lambda + sliding friction), lambda from the multiplier equation (module docstring); with
+    sliding contacts the solve is repeated with the friction of the last lambda_n until lambda no longer changes
+    (core/contact.py; the factorization stays)."""
+    cons = m.constraints
+    evaluate_rows(m, act, s, y, table, j)
+    inverse_mass_times_J(act, cons, m.bodies, s.inv_inertia, s.J, s.MJ)
+    assemble(act, s.J, s.MJ, s.include, True, cons.soft, s.Lx, s.diag)
     if factor(act, s.Lx, s.diag, s.work, s.dropped):
         s.counters[0] += 1
-    substitute(act, s.Lx, s.dropped, s.rhs, s.lam)
+    for iteration in range(FRICTION_ITERATIONS):
+        friction = _add_friction(m, act, s, y, acc)
+        _right_hand_side(m, act, s, y, acc)
+        for i in range(len(act.rows)):
+            s.dlam[i] = s.lam[i]
+        substitute(act, s.Lx, s.dropped, s.rhs, s.lam)
+        if not friction:
+            break
+        change, size = 0.0, 0.0
+        for i in range(len(act.rows)):
+            change = max(change, abs(s.lam[i] - s.dlam[i]))
+            size = max(size, abs(s.lam[i]))
+        if change <= FRICTION_TOL * size or iteration == FRICTION_ITERATIONS - 1:
+            break
+        _remove_friction(m, s, y, acc)
     apply_impulses(act, cons, s.MJ, s.lam, 1.0, acc)
 
 

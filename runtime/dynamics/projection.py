@@ -87,7 +87,7 @@ def project(m, act, s, y, table, j, fresh):
     if fresh or not every:
         world_inverse_inertia(m.bodies, s.R, s.inv_inertia)
         inverse_mass_times_J(act, cons, m.bodies, s.inv_inertia, s.J, s.MJ)
-        assemble(act, s.J, s.MJ, s.include, every, s.Lx, s.diag)
+        assemble(act, s.J, s.MJ, s.include, every, cons.soft, s.Lx, s.diag)
         if factor(act, s.Lx, s.diag, s.work, s.dropped):
             s.counters[0] += 1
     for _ in range(PROJECT_ITERATIONS):
@@ -96,19 +96,19 @@ def project(m, act, s, y, table, j, fresh):
         for i in range(len(act.rows)):
             r = act.rows[i]
             s.rhs[i] = -s.C[r] if act.held[i] and not cons.velocity_only[r] else 0.0
-        substitute(act, s.Lx, s.dropped, s.rhs, s.lam)
-        _move(m, act, s, y, s.lam)
+        substitute(act, s.Lx, s.dropped, s.rhs, s.dlam)  # (s.lam keeps the step's forces: contacts read them)
+        _move(m, act, s, y, s.dlam)
         evaluate_rows(m, act, s, y, table, j)
         worst_c, worst_v = _largest_errors(m, act, s, y)
     if worst_v > PROJECT_VELOCITY:
         for i in range(len(act.rows)):
             r = act.rows[i]
             s.rhs[i] = -(row_motion(cons, r, y, y, s.J, 7) + s.ct[r]) if act.held[i] else 0.0
-        substitute(act, s.Lx, s.dropped, s.rhs, s.lam)
+        substitute(act, s.Lx, s.dropped, s.rhs, s.dlam)
         for b in range(len(y)):
             for c in range(6):
                 s.delta[b, c] = 0.0
-        apply_impulses(act, cons, s.MJ, s.lam, 1.0, s.delta)
+        apply_impulses(act, cons, s.MJ, s.dlam, 1.0, s.delta)
         for b in range(len(y) - 1):
             if m.bodies.dynamic[b]:
                 for c in range(6):

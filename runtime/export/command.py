@@ -42,6 +42,8 @@ def export(scene, scene_path: Path, out: Path, fmt: str, trajectory: Path | None
     """Write the export; returns the written paths."""
     arrays, source = trajectory_for(scene, scene_path, out, trajectory)
     folder = scene_path.parent
+    if fmt == "rib" and rib_options is not None:
+        _check_frames(rib_options.frames, len(arrays["time"]))
     if fmt == "rib":
         from .rib import write_rib
 
@@ -53,3 +55,16 @@ def export(scene, scene_path: Path, out: Path, fmt: str, trajectory: Path | None
     where = paths[0] if len(paths) == 1 else f"{len(paths)} files in {paths[0].parent}/"
     print(f"{scene.name}: {fmt} from {source}: {where}")
     return paths
+
+
+def _check_frames(frames: slice, count: int) -> None:
+    """--frames must select at least one frame of the run (a SceneError, exit 2, says which there are)."""
+    if not range(count)[frames]:
+        from isaac_lang.diagnostics import Diagnostic, SceneError
+
+        start, stop, step = frames.start, frames.stop, frames.step
+        one = step is None and start is not None and stop == start + 1  # `--frames 42`
+        parts = (start, stop) + ((step,) if step else ())
+        spec = str(start) if one else ":".join("" if v is None else str(v) for v in parts)
+        raise SceneError([Diagnostic(f"--frames {spec} selects no frame: the run has {count} frames, "
+                                     f"0 to {count - 1}", None, "e.g. --frames 0:100:10, or --frames 42")])

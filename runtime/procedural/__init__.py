@@ -18,7 +18,8 @@ from .loop import run
 from .project import Curves, Sweep
 
 # `projection auto`: all rows at once (one small factorization per substep) up to this many rows, Gauss-Seidel
-# sweeps beyond (see docs/procedural.md for the measurements)
+# sweeps beyond (see docs/procedural.md for the measurements); with contacts, all at once always (a resting
+# patch's rows are redundant: sweeps over them converge too slowly to hold a stack still)
 DIRECT_MAX_ROWS = 64
 
 
@@ -37,7 +38,8 @@ class ProceduralStepper:
         c = self.compiled
         table = c.tabulate(t0, h, steps, self.grid)
         _, sw, curves = self._epoch(act)
-        all_at_once = self.projection == "direct" or (self.projection == "auto" and len(act.rows) <= DIRECT_MAX_ROWS)
+        all_at_once = self.projection == "direct" or (self.projection == "auto" and (
+            len(act.rows) <= DIRECT_MAX_ROWS or bool(len(act.rows)) and act.rows.max() >= c.joint_rows))
         return run(c.model, act, sw, curves, c.scratch, y, table, h, steps, self.grid, self.iterations, all_at_once,
                    frame_step, frames, status)
 

@@ -1,19 +1,26 @@
 """The procedural plan's step loop, compiled: forces once per step (the wind's drag relaxed over the step,
-wind/drag.py), then `substeps` substeps of move, project, put back (substep.py, project.py); kinematic bodies and
-moving constraint parameters at every substep's end; frames recorded and blow-ups caught as in the dynamics plan
+wind/drag.py), then `substeps` substeps of move, project, put back (substep.py, project.py) and the sliding
+contacts' friction as impulses (core/contact.py friction_impulses); kinematic bodies and moving constraint parameters at every
+substep's end; frames recorded, blow-ups caught and changes of contact handed back as in the dynamics plan
 (dynamics/integrate.py). The time table has `substeps` rows per step (row S i + s at the start of substep s).
+
+Contacts are rows like any other here: the projection holds a resting or sticking contact (its multiplier
+lambda, a position-level impulse, is the force times hs^2), so after a step s.lam holds the last substep's
+lambda / hs^2, the forces that core/contact.py's tests read.
 """
 from __future__ import annotations
 
 import math
 
 from ..core.bodies import copy_state, place_kinematic, rotations, runaway_body
+from ..core.contact import add_impulses, friction_impulses, look_after_step
+from ..core.data import COUNTER_TURNED_BACK
 from ..core.forces import add_loads, add_springs, weights
 from ..core.jit import entry, kernel
 from ..core.record import RUNAWAY_CONSTRAINT_ERROR, record
 from ..core.rows import apply_drivers
 from ..core.timetable import TIME
-from ..dynamics.integrate import DONE, RUNAWAY_BODY, RUNAWAY_ROW
+from ..dynamics.integrate import CONTACT, DONE, RUNAWAY_BODY, RUNAWAY_ROW
 from ..wind.kernels import wind_relax
 from .project import direct, start_directions, sweep
 from .substep import SHAKE_MAX_TURN, predict, put_back
@@ -62,22 +69,37 @@ def procedural_step(m, act, sw, curves, s, y, table, j, h, substeps, iterations,
             else:
                 sweep(m, act, sw, curves, s, y, t, hs, shake, iterations)
         put_back(m, s, y, hs)
+        if len(act.rows) and len(m.pairs.a):
+            # the normal impulse of the substep: lambda / hs; the sliding contacts' friction
+            add_impulses(act, m.constraints, s.lam, act.local, 1.0 / hs, s.impulse)
+            friction_impulses(act, m.constraints, s.param, m.bodies, s.inv_inertia, y, s.R, s.lam, act.local, hs,
+                              s.friction, s.counters)
+    # forces = lambda / hs^2 (module docstring)
+    for i in range(len(act.rows)):
+        s.lam[i] /= hs * hs
 
 
 @entry
 def run(m, act, sw, curves, s, y, table, h, steps, substeps, iterations, all_at_once, frame_step, frames, status):
     """Advance y by `steps` steps of h (as dynamics/integrate.run, with the procedural step)."""
-    status[0], status[1], status[2] = DONE, 0, -1
+    status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
         record(m, act, s, y, table, 0, frames, f)
         f += 1
     for step in range(steps):
+        copy_state(y, s.start)
+        s.counters[COUNTER_TURNED_BACK] = 0
         procedural_step(m, act, sw, curves, s, y, table, substeps * step, h, substeps, iterations, all_at_once)
         body = runaway_body(m.bodies, y)
         if body >= 0:
             status[0], status[1], status[2] = RUNAWAY_BODY, step + 1, body
             return step + 1
+        if len(m.pairs.a):
+            code, which = look_after_step(m, act, s, y)
+            if code != 0:
+                status[0], status[1], status[2], status[3] = CONTACT, step + 1, which, code
+                return step + 1
         while f < len(frame_step) and frame_step[f] == step + 1:
             record(m, act, s, y, table, substeps * (step + 1), frames, f)
             if not frames.error[f] <= RUNAWAY_CONSTRAINT_ERROR:

@@ -174,7 +174,7 @@ def direct(m, act, curves, s, y, t, hs, iterations, shake):
     if not shake:  # the gradients now serve as directions
         write_rows(act.instances, cons, s.param, y, s.R, s.C, s.Jd, s.ct, s.bias)
     inverse_mass_times_J(act, cons, m.bodies, s.inv_inertia, s.Jd, s.MJ)
-    assemble(act, s.Jd, s.MJ, s.include, True, s.Lx, s.diag)
+    assemble(act, s.Jd, s.MJ, s.include, True, cons.soft, s.Lx, s.diag)
     for i in range(len(act.rows)):
         alpha = cons.compliance[act.rows[i]] / (hs * hs)
         s.Lx[act.Lp[i]] += alpha

@@ -6,7 +6,8 @@
     drag.py        F = 1/2 rho Cd A |u - v| (u - v) at the centre of pressure, A from shape and orientation
     ../signals.py  envelope(...) of a recording and mic(): intensities from sound
 
-Built by `compile_wind(scene, plan)` only when the scene has winds and a dynamic body with `wind on`; the force
+Built by `compile_wind(scene, plan)` only when a dynamic body feels the air (`wind on`, or `drag` or `area`
+given), with no winds too (still air: u = 0, the drag stays); the force
 stage calls `WindPlan.apply` at every force evaluation. Two models of the same drag:
   force       (dynamics plan) the drag is one more force, integrated by RK4 with the rest;
   procedural  (procedural plan) drag linearized and solved exactly over the step: the forces on a body in the
@@ -145,9 +146,10 @@ def wind_intensity(wind: WindPlan, name: str, t: float) -> float:
 # ---- compiling -------------------------------------------------------------------------------------------------
 
 def compile_wind(scene: ir.Scene, plan, folder=None) -> WindPlan | None:
-    """The wind stage of this scene, or None when no dynamic body feels a wind."""
+    """The wind stage of this scene, or None when no dynamic body feels the air (a body with `drag`, `area` or
+    `wind on` feels it still where no wind blows: drag in still air at the scene's `air` density)."""
     chosen = [i for i, body in enumerate(scene.bodies) if body.wind.enabled and plan.dynamic[i]]
-    if not scene.winds or not chosen:
+    if not chosen:
         return None
     folders = S.asset_folders(scene, folder if folder is not None else getattr(plan, "folder", None))
     functions = [_functions(scene, wind, folders, plan) for wind in scene.winds]
@@ -157,7 +159,7 @@ def compile_wind(scene: ir.Scene, plan, folder=None) -> WindPlan | None:
     aeros = [shape_aero(scene.bodies[i].shape, scene.bodies[i].mass, scene.bodies[i].inertia, scene.bodies[i].wind.area)
              for i in chosen]
     bodies = stack_bodies(chosen, aeros, [scene.bodies[i].wind.drag for i in chosen], plan.mass, plan.inertia_body)
-    densities = sorted({wind.air_density for wind in scene.winds})
+    densities = sorted({wind.air_density for wind in scene.winds} or {getattr(scene, "air_density", 1.2)})
     if len(densities) > 1:
         plan.warnings.append(f"the winds give different air densities {densities}; drag uses {densities[-1]:g} kg/m3")
     model = "procedural" if plan.solver == "procedural" else "force"

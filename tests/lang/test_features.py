@@ -20,7 +20,7 @@ DATA = Path(__file__).resolve().parent / "data"
 
 @pytest.fixture(scope="module")
 def features() -> ir.Scene:
-    return load_scene(DATA / "features.isaac").scene
+    return load_scene(DATA / "features.isaac", assets=False).scene  # it names a breath.wav it does not ship
 
 
 def constraint(scene: ir.Scene, name: str) -> ir.Constraint:
@@ -198,7 +198,7 @@ def test_exclusions(features):
 
 def test_parameters_are_the_top_level_lets(features):
     assert dict(features.parameters) == {"ball_radius": 0.02, "n": 3.0, "spin_rate": 2.0}
-    spun = load_scene(DATA / "features.isaac", overrides={"spin_rate": "3 rad/s", "n": "4"}).scene
+    spun = load_scene(DATA / "features.isaac", overrides={"spin_rate": "3 rad/s", "n": "4"}, assets=False).scene
     assert spun.body("wheel").angular_velocity == (0.0, 0.0, 3.0)
     assert len([b for b in spun.bodies if b.name.startswith("bead")]) == 4
 
@@ -264,7 +264,7 @@ def test_other_shapes_triggers_and_constraint_forms():
             "  sound s1 on always { play noise() * 0.1 }\n  sound s2 on contact(a, b) { play scrape(a) * speed }\n"
             "  constraint o3 orient(a, x, y)\n  constraint o4 orient(a, x, b, y)\n"
             "  constraint e tx(a, b) + ry(a)\n  constraint r rope(a, (0, 1 cm, 0), c, -y)\n}\n")
-    scene = load_text(text, "s.isaac").scene
+    scene = load_text(text, "s.isaac", assets=False).scene  # the IR of a mesh body; the file is not read
     assert scene.body("m").shape.file == "assets/rock.obj" and scene.body("m").inertia[2][2] == 0.3
     assert [(s.trigger, s.bodies) for s in scene.sounds] == [("always", ()), ("contact", ("a", "b"))]
     assert summary(constraint(scene, "o4")) == [("orient", ("a", "b"), ("orient",))]

@@ -142,7 +142,8 @@ def test_dimension_mismatch_in_a_sum():
 
 def test_wrong_unit_for_a_slot():
     assert error("velocity (1, 0, 0) m") == "`velocity` wants a velocity, not a length"
-    assert error("spin (0, 0, 1) Hz") == "`spin` wants an angular velocity, not a frequency"
+    assert error("spin (0, 0, 1) Hz") == "`spin` wants an angular velocity: Hz counts cycles, not radians"
+    assert error("spin (0, 0, 1) m") == "`spin` wants an angular velocity, not a length"
     assert error(extra="constraint c nail(b) during 0 m .. 1 m") == "a constraint's time wants a time, not a length"
 
 

@@ -249,7 +249,8 @@ def test_the_language_reference_example_compiles_and_plays():
     block = next(b for b in re.findall(r"^```isaac\n(.*?)^```", text, re.S | re.M) if "scene sounding" in b)
     import dataclasses
 
-    plan = compile_audio(load_text(block, name="example.isaac").scene)
+    scenes = Path(__file__).resolve().parents[2] / "scenes"  # where its assets/breath.wav is
+    plan = compile_audio(load_text(block, name="example.isaac", folder=scenes).scene)
     plan = dataclasses.replace(plan, end=1.0)  # the first second is enough
     assert [s.sound.name for s in plan.sounds] == ["clank", "scrape", "hiss", "chime", "room"]
     events = [{"time": 0.2, "bodies": ["bar", "floor"], "point": [0, 0, 0], "normal": [0, 1, 0], "impulse": 0.3,

@@ -64,8 +64,11 @@ def test_envelope_of_a_recording_in_a_wind(tmp_path):
 def test_missing_recording_is_a_scene_error_at_the_wind(tmp_path):
     text = ("scene s {\n  body b sphere { radius 1 cm  mass 1 g  wind on }\n"
             "  wind w { direction (1, 0, 0)  speed envelope(\"nope.wav\") * 4 m/s }\n}")
-    with pytest.raises(SceneError) as error:
-        compile_plan(load_text(text, folder=tmp_path).scene)
+    with pytest.raises(SceneError) as error:  # the front end reads it (isaac_lang/assets.py), at the file's name
+        load_text(text, folder=tmp_path)
+    assert (error.value.diagnostics[0].pos.line, error.value.diagnostics[0].pos.col) == (3, 48)
+    with pytest.raises(SceneError) as error:  # and the plan still says so, at the wind, for an IR made elsewhere
+        compile_plan(load_text(text, folder=tmp_path, assets=False).scene)
     diagnostic = error.value.diagnostics[0]
     assert "no such sound file" in diagnostic.message and "nope.wav" in diagnostic.message
     assert (diagnostic.pos.line, diagnostic.pos.col) == (3, 3)

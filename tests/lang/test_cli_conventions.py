@@ -1,0 +1,225 @@
+"""The command line's conventions: --version, `python -m isaac_lang`, -q/-v, option values with units and checked
+where they are given, exit codes 0/1/2/3, warnings on stderr (--strict: errors), assets read by `check`, extras
+checked with the plan, outputs named after the scene's file, honouring the umask, and clearing only their own."""
+from __future__ import annotations
+
+import json
+import os
+import stat
+import subprocess
+import sys
+from importlib.metadata import requires
+from pathlib import Path
+
+import pytest
+
+from isaac_lang.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENES = ROOT / "scenes"
+ISAAC = Path(sys.executable).with_name("isaac")
+SWING = """scene swing {
+  time 0 s .. 1 s
+  body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) }
+  constraint hang nail(bob @ (-1, 0, 0), (0, 0, 0))
+}
+"""
+
+
+def with_line(text: str, line: str) -> str:
+    """The scene with one more declaration before its closing brace."""
+    return text.rstrip().removesuffix("}") + line + "\n}\n"
+
+
+def run_cli(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def scene_file(tmp_path, text=SWING, name="swing.isaac") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+# -- version, python -m, verbosity ---------------------------------------------------------------------------
+
+def test_version_and_python_dash_m():
+    done = subprocess.run([str(ISAAC), "--version"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and done.stdout.startswith("isaac ")
+    done = subprocess.run([sys.executable, "-m", "isaac_lang", "--help"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and "golden" in done.stdout and "run" in done.stdout
+    done = subprocess.run([sys.executable, "-m", "isaac_lang", "check", str(SCENES / "pendulum.isaac")],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and "ok" in done.stdout
+
+
+def test_quiet_and_verbose(tmp_path, capsys):
+    scene = scene_file(tmp_path)
+    code, out, err = run_cli(capsys, "-qq", "run", scene, "--out", tmp_path / "a", "--until", "0.1")
+    assert code == 0 and out == "" and err == ""
+    code, out, err = run_cli(capsys, "run", "-v", scene, "--out", tmp_path / "b", "--until", "0.1")
+    assert code == 0 and "wrote" in out and "trajectory.npz" in out and "stages:" in err
+
+
+# -- option values ------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv", [["--step", "0"], ["--until", "-1"], ["--step", "-1 ms"], ["--step", "-1", "ms"],
+                                  ["--step", "nan"], ["--until", "inf"], ["--step", "1 m"], ["--step", "1 mss"],
+                                  ["--max-constraint-error", "0"], ["--max-items", "0"]])
+def test_a_bad_option_value_is_exit_2_with_a_message(tmp_path, argv):
+    scene = scene_file(tmp_path)
+    done = subprocess.run([str(ISAAC), "run", str(scene), "--out", str(tmp_path / "o"), *argv], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 2, done.stderr
+    assert "error:" in done.stderr and "Traceback" not in done.stderr and "internal error" not in done.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_step_and_until_take_units(tmp_path, capsys):
+    scene = scene_file(tmp_path)
+    assert run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--step", "2 ms", "--until", "200ms")[0] == 0
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert report["step"] == pytest.approx(0.002) and report["simulated_time"] == pytest.approx(0.2)
+    assert run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--step", "1", "ms", "--until", "0.1")[0] == 0
+    assert json.loads((tmp_path / "o" / "report.json").read_text())["step"] == pytest.approx(0.001)
+
+
+def test_until_before_the_scene_starts(tmp_path, capsys):
+    scene = scene_file(tmp_path, SWING.replace("time 0 s .. 1 s", "time 2 s .. 3 s"))
+    code, out, err = run_cli(capsys, "run", scene, "--until", "1 s")
+    assert code == 2 and "is not after the scene's start (2 s)" in err
+
+
+# -- exit 3, warnings, --strict --------------------------------------------------------------------------------
+
+def test_constraints_that_cannot_hold_exit_3(tmp_path, capsys):
+    scene = scene_file(tmp_path, with_line(SWING, "  constraint other nail(bob @ (-1, 0, 0), (0, 0.5, 0))"))
+    code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--until", "0.5")
+    assert code == 3 and "above --max-constraint-error 0.1" in err and "Traceback" not in err
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert report["checks"]["max_constraint_error"]["ok"] is False
+    assert report["constraint_error_settled"] > 0.4
+    assert run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--until", "0.5",
+                   "--max-constraint-error", "off")[0] == 0
+    assert run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--until", "0.5",
+                   "--max-constraint-error", "2 m")[0] == 0
+
+
+def test_a_gap_that_closes_is_not_a_broken_tolerance(tmp_path, capsys):
+    # selfassembly: 0.4 m apart when the joint switches on at 1 s, closed by 1.8 s
+    code, out, err = run_cli(capsys, "run", SCENES / "selfassembly.isaac", "--out", tmp_path / "o")
+    assert code == 0, err
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert report["max_constraint_error"] > 0.3 and report["constraint_error_settled"] < 1e-3
+
+
+def test_warnings_go_to_stderr_and_strict_makes_them_errors(tmp_path, capsys):
+    text = with_line(SWING.replace("constraint hang nail", "solver dynamics { step 20 ms }\n  constraint hang nail"),
+                     "  constraint late nail(bob) from 5 s")
+    scene = scene_file(tmp_path, text)
+    code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--max-constraint-error", "off")
+    assert code == 0
+    assert f"{scene}:6:3: warning: constraint `late` starts after the scene ends" in err
+    assert f"{scene}: warning: the step (0.02 s) is longer than a frame" in err
+    assert any("longer than a frame" in w for w in json.loads((tmp_path / "o" / "report.json").read_text())["warnings"])
+    code, out, err = run_cli(capsys, "check", scene, "--strict")
+    assert code == 2 and f"{scene}:6:3: error: constraint `late` starts after the scene ends" in err
+    scene.write_text(text.replace("\n  constraint late nail(bob) from 5 s", ""), encoding="utf-8")
+    code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--strict")
+    assert code == 2 and "error: the step (0.02 s) is longer than a frame" in err
+
+
+# -- assets and extras -------------------------------------------------------------------------------------------
+
+MESH = """scene rocks {
+  time 0 s .. 0.5 s
+  body floor plane { }
+  body rock mesh { file "assets/rock.obj"  mass 2 kg  inertia (0.1, 0.2, 0.3) kg*m2  at (0, 1, 0) }
+  body ball sphere { radius 5 cm  mass 1 kg  at (0, 2, 0) }
+}
+"""
+
+
+def test_check_reads_every_asset(tmp_path, capsys):
+    scene = scene_file(tmp_path, MESH, "rocks.isaac")
+    code, out, err = run_cli(capsys, "check", scene)
+    assert code == 2 and "Traceback" not in err
+    col = MESH.splitlines()[3].index('"assets') + 1
+    assert f"{scene}:4:{col}: error: no such mesh file: `assets/rock.obj`" in err
+    assert "      | " + " " * (col - 1) + "^~~~~~~~~~~~~~~~~\n" in err
+    code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o")
+    assert code == 2 and "no such mesh file" in err and not (tmp_path / "o").exists()
+    (tmp_path / "assets").mkdir()
+    (tmp_path / "assets" / "rock.obj").write_bytes((SCENES / "assets" / "icosahedron.obj").read_bytes())
+    assert run_cli(capsys, "check", scene)[0] == 0
+    (tmp_path / "breath.wav").write_text("not a sound")
+    scene.write_text(with_line(MESH, '  sound s on always { play envelope("breath.wav") * noise() }'))
+    code, out, err = run_cli(capsys, "check", scene)
+    assert code == 2 and "cannot read `breath.wav` as sound" in err
+
+
+def test_a_missing_extra_is_found_with_the_plan_before_the_run(tmp_path):
+    scene = scene_file(tmp_path, MESH.replace("assets/rock.obj", "rock.obj"), "rocks.isaac")
+    (tmp_path / "rock.obj").write_bytes((SCENES / "assets" / "icosahedron.obj").read_bytes())
+    program = ("import sys; sys.modules['fcl'] = None; sys.modules['matplotlib'] = None\n"
+               "from isaac_lang.cli import main; sys.exit(main(sys.argv[1:]))")
+    done = subprocess.run([sys.executable, "-c", program, "run", str(scene), "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "python-fcl" in done.stderr and "pip install 'isaac[mesh]'" in done.stderr
+    assert not (tmp_path / "o").exists()  # nothing was simulated
+    done = subprocess.run([sys.executable, "-c", program, "run", str(SCENES / "pendulum.isaac"), "--plots",
+                           "--out", str(tmp_path / "p")], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and "pip install 'isaac[plots]'" in done.stderr and not (tmp_path / "p").exists()
+
+
+def test_soundfile_is_a_core_dependency():
+    core = [r for r in requires("isaac") if "extra ==" not in r]
+    assert any(r.startswith("soundfile") for r in core)
+
+
+# -- outputs ------------------------------------------------------------------------------------------------------
+
+def test_outputs_are_named_after_the_file_and_honour_the_umask(tmp_path, capsys, monkeypatch):
+    scene = scene_file(tmp_path, SWING, "my_swing.isaac")  # the scene inside is `swing`
+    monkeypatch.chdir(tmp_path)
+    old = os.umask(0o022)
+    try:
+        assert run_cli(capsys, "run", "my_swing.isaac", "--until", "0.1")[0] == 0
+    finally:
+        os.umask(old)
+    out = tmp_path / "out" / "my_swing"
+    assert (out / "trajectory.npz").is_file() and not (tmp_path / "out" / "swing").exists()
+    for path in out.iterdir():
+        assert stat.S_IMODE(path.stat().st_mode) == 0o644, path
+
+
+def test_a_run_clears_what_it_owns_and_nothing_else(tmp_path, capsys):
+    out = tmp_path / "o"
+    assert run_cli(capsys, "run", SCENES / "bar.isaac", "--out", out, "--until", "0.3", "--plots")[0] == 0
+    assert (out / "audio.wav").is_file() and (out / "plots" / "spectrogram.png").is_file()
+    (out / "notes.txt").write_text("mine")
+    (out / "plots" / "mine.png").write_text("mine")
+    assert run_cli(capsys, "run", scene_file(tmp_path), "--out", out, "--until", "0.1", "--no-viewer")[0] == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["events.json", "ir.json", "notes.txt", "plots", "report.json", "trajectory.npz"]
+    assert sorted(p.name for p in (out / "plots").iterdir()) == ["mine.png"]
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+
+def test_export_frames_that_select_nothing(tmp_path, capsys):
+    scene = scene_file(tmp_path)
+    out = tmp_path / "o"
+    assert run_cli(capsys, "run", scene, "--out", out, "--until", "0.2")[0] == 0
+    code, _, err = run_cli(capsys, "export", scene, "--format", "rib", "--out", out, "--frames", "9999")
+    assert code == 2 and "--frames 9999 selects no frame: the run has 13 frames, 0 to 12" in err
+    assert "Traceback" not in err and "internal error" not in err
+
+
+def test_the_parser_knows_the_runtimes_default_limit():
+    from isaac_lang import cli
+    from isaac_runtime import checks
+
+    assert cli._default_constraint_limit() == checks.DEFAULT_MAX_CONSTRAINT_ERROR
