@@ -10,6 +10,7 @@
     isaac export SCENE --format rib|gltf|glb [--out DIR] [--trajectory NPZ] [--frames A:B:S] ...
     isaac bench [--quick] [--only NAME] [--out DIR]   the benchmark suite (benchmarks/, a source checkout)
     isaac golden SCENE... [--update] [--set ...]   golden files beside each scene: record, or check (exit 3)
+    isaac live SCENE [--mic [DEVICE|FILE]] [--until S] [--port N] [--no-browser] [--out DIR]   real time, a page
     isaac --version; isaac -q|-qq|-v COMMAND ...   no progress bar; errors and warnings only; more verbose
 """
 from __future__ import annotations
@@ -18,9 +19,7 @@ import argparse
 import dataclasses
 import os
 import sys
-import tempfile
 import time
-import traceback
 from pathlib import Path
 
 from . import options as opt
@@ -43,6 +42,11 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--max-items", type=opt.positive_int, default=None,
                          help="limit on declarations after loops and parts expand (default 200000)")
         sub.add_argument("--strict", action="store_true", help="warnings are errors (exit 2)")
+        sub.add_argument("--include-path", action="append", default=[], type=opt.include_folder, metavar="DIR",
+                         help="a folder besides the scene's own whose files it may include and name (repeatable)")
+        sub.add_argument("--budget", action="append", default=[], type=opt.budget, metavar="NAME=VALUE",
+                         help="raise (or lower) a limit of the plan, e.g. steps=1e8, memory=8GB, frames=off "
+                              "(docs/budgets.md; also ISAAC_BUDGET)")
         verbosity_options(sub, argparse.SUPPRESS)
         return sub
 
@@ -70,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
     export = scene_command("export", "write the run as RenderMan RIB or glTF 2.0")
     export.add_argument("--format", required=True, choices=("rib", "gltf", "glb"),
                         help="rib: RenderMan frames; gltf: JSON with embedded buffer; glb: binary glTF")
-    export.add_argument("--out", default=None, help="output folder (default out/<scene>/)")
+    export.add_argument("--out", default=None, type=opt.output_folder, help="output folder (default out/<scene>/)")
     export.add_argument("--trajectory", default=None,
                         help="the trajectory.npz to export (default: the one in the output folder when it was "
                              "run from this very scene, else a new run)")
@@ -89,6 +93,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--docs", action=argparse.BooleanOptionalAction, default=None,
                        help="rewrite the tables of docs/performance.md (default: full runs into benchmarks/results)")
     golden_command(commands)
+    from .live_command import add_parser as live_command  # isaac live (isaac_lang/live_command.py)
+
+    live_command(commands, scene_command)
     sweep = commands.add_parser("sweep", help="run many variants of a scene (each a Dask task): one table")
     sweep.add_argument("scene", help="the .isaac file")
     sweep.add_argument("--set", action="append", default=[], metavar="NAME=VALUES",
@@ -116,7 +123,7 @@ BENCH_SECTIONS = ("work_precision", "scaling", "stress", "specialization", "audi
 
 def run_options(sub: argparse.ArgumentParser) -> None:
     """The options that say how to simulate, shared by run and watch."""
-    sub.add_argument("--out", default=None, help="output folder (default out/<scene>/)")
+    sub.add_argument("--out", default=None, type=opt.output_folder, help="output folder (default out/<scene>/)")
     sub.add_argument("--solver", choices=("dynamics", "procedural", "auto"), default=None)
     sub.add_argument("--step", type=opt.step_time, default=None, help="solver step, e.g. 1ms (bare: seconds)")
     sub.add_argument("--until", type=opt.end_time, default=None, help="stop at this time, e.g. 2s (bare: seconds)")
@@ -176,7 +183,8 @@ def main(argv=None) -> int:
         return done.code if isinstance(done.code, int) else (0 if done.code is None else EXIT_SCENE)
     sources = SourceCache()
     try:
-        code = COMMANDS[args.command](args, sources)
+        with opt.budget_environment(getattr(args, "budget", None)):
+            code = COMMANDS[args.command](args, sources)
     except SceneError as error:
         print(_as_written(error, getattr(args, "scene", ""), sources).format(sources), file=sys.stderr)
         code = EXIT_SCENE
@@ -208,13 +216,11 @@ def _as_written(error: SceneError, scene: str, sources: SourceCache) -> SceneErr
 
 
 def _report_bug() -> int:
-    """Say it is our fault, and where the traceback went, instead of a wall of text."""
-    fd, path = tempfile.mkstemp(prefix="isaac-crash-", suffix=".txt")
-    with os.fdopen(fd, "w") as handle:
-        traceback.print_exc(file=handle)
-    kind, value, _ = sys.exc_info()
-    print(f"isaac: internal error ({kind.__name__}: {value}); this is a bug in isaac, not in your scene.\n"
-          f"The traceback is in {path}", file=sys.stderr)
+    """Say it is our fault, and where the traceback went, instead of a wall of text (isaac_lang/crash.py, as
+    `isaac watch` says it)."""
+    from .crash import internal_error
+
+    print(f"isaac: {internal_error(sys.exc_info()[1])}", file=sys.stderr)
     return EXIT_BUG
 
 
@@ -236,14 +242,11 @@ def _usage_diagnostic(message: str):
 
 def _load(args, sources):
     from .diagnostics import warning_diagnostic
-    from .expand import Limits
     from .load import load_scene
 
     path = Path(args.scene)
-    if not path.is_file():
-        raise SceneError([_usage_diagnostic(f"no such scene file: {path}")])
-    limits = Limits(max_items=args.max_items) if args.max_items else Limits()
-    loaded = load_scene(path, _overrides(args), limits, sources)
+    _check_scene_file(path)
+    loaded = load_scene(path, _overrides(args), _limits(args), sources)
     strict = getattr(args, "strict", False)
     warnings = [warning_diagnostic(text, "error" if strict else "warning") for text in loaded.warnings]
     if warnings and strict:
@@ -251,6 +254,22 @@ def _load(args, sources):
     if warnings:
         print(_as_written(SceneError(warnings), args.scene, sources).format(sources), file=sys.stderr)
     return loaded
+
+
+def _check_scene_file(path: Path) -> None:
+    """The scene named on the command line is a text file: not missing, not a folder, a FIFO or a device."""
+    if not path.exists():
+        raise SceneError([_usage_diagnostic(f"no such scene file: {path}")])
+    if not path.is_file():
+        raise SceneError([_usage_diagnostic(f"{path} is not a regular file (a folder, a FIFO or a device): a scene "
+                                            "is a text file")])
+
+
+def _limits(args):
+    """--max-items and --include-path as the front end's Limits."""
+    from .expand import Limits
+
+    return Limits(max_items=args.max_items or Limits.max_items, include_path=tuple(args.include_path or ()))
 
 
 def cmd_parse(args, sources) -> int:
@@ -311,19 +330,17 @@ def _check_until(args, scene) -> None:
 
 
 def cmd_watch(args, sources) -> int:
-    from .expand import Limits
     from .watch import Watch, WatchOptions
 
     path = Path(args.scene)
-    if not path.is_file():
-        raise SceneError([_usage_diagnostic(f"no such scene file: {path}")])
+    _check_scene_file(path)
     if args.plots:  # every extra is checked before the first run, never after it
         from isaac_runtime.extras import check_modules
 
         check_modules([("matplotlib", "--plots")])
     options = WatchOptions(out=Path(args.out) if args.out else None, overrides=_overrides(args), solver=args.solver,
                            step=args.step, until=args.until,
-                           limits=Limits(max_items=args.max_items) if args.max_items else Limits(),
+                           limits=_limits(args),
                            serve=args.serve, port=args.port, poll=args.poll, plots=args.plots)
 
     def format_error(error, loaded_sources):
@@ -392,8 +409,15 @@ def cmd_sweep(args, sources) -> int:
     return run_command(args, _verbosity(args))
 
 
+def cmd_live(args, sources) -> int:
+    """Real time, a live page (isaac_lang/live_command.py; the run: isaac_runtime.live)."""
+    from .live_command import cmd_live as live
+
+    return live(args, lambda a: _load(a, sources), _verbosity(args), default_out, _check_until, _overrides(args))
+
+
 COMMANDS = {"parse": cmd_parse, "check": cmd_check, "plan": cmd_plan, "run": cmd_run, "watch": cmd_watch,
-            "export": cmd_export, "bench": cmd_bench, "sweep": cmd_sweep, "golden": cmd_golden}
+            "export": cmd_export, "bench": cmd_bench, "sweep": cmd_sweep, "golden": cmd_golden, "live": cmd_live}
 
 def entry() -> None:  # pragma: no cover (the `isaac` command; tests call main)
     """`isaac ...`: main(), then leave without the interpreter's teardown. Every output is written and closed by

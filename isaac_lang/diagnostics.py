@@ -50,12 +50,28 @@ class Diagnostic:
         text = sources.line(self.pos) if (sources and self.pos) else None
         if text is not None:
             gutter = f"{self.pos.line:>5} | "
-            lines.append(gutter + text.rstrip("\n").expandtabs(1))
-            underline = "^" + "~" * max(0, min(self.pos.length, len(text) - self.pos.col + 1) - 1)
-            lines.append(" " * 5 + " | " + " " * (self.pos.col - 1) + underline)
+            text, col = _window(printable(text), self.pos.col)
+            lines.append(gutter + text)
+            underline = "^" + "~" * max(0, min(self.pos.length, len(text) - col + 1, ECHO_WIDTH) - 1)
+            lines.append(" " * 5 + " | " + " " * (col - 1) + underline)
         if self.hint:
             lines.append(f"hint: {self.hint}")
         return "\n".join(lines)
+
+
+# the most characters of a source line echoed under a diagnostic (a longer line is cut around the caret)
+ECHO_WIDTH = 160
+
+
+def _window(text: str, col: int) -> tuple:
+    """(the part of a long line around column col, col within that part)."""
+    if len(text) <= ECHO_WIDTH:
+        return text, col
+    start = max(0, min(col - 1 - ECHO_WIDTH // 2, len(text) - ECHO_WIDTH))
+    head = "..." if start > 0 else ""
+    part = text[start:start + ECHO_WIDTH]
+    tail = "..." if start + ECHO_WIDTH < len(text) else ""
+    return head + part + tail, col - start + len(head)
 
 
 class SceneError(Exception):
@@ -69,6 +85,26 @@ class SceneError(Exception):
         return "\n".join(d.format(sources) for d in self.diagnostics)
 
 
+def source_lines(text: str) -> list:
+    """The lines of a text as the lexer counts them: a line ends at `\n` alone (with a `\r` before it dropped),
+    so that a form feed, a lone `\r` or a Unicode line separator inside a line leaves the line numbers where the
+    lexer has them (str.splitlines would break there too)."""
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    return [line[:-1] if line.endswith("\r") else line for line in lines]
+
+
+# control characters and separators of the echoed line, each shown as one blank so that the caret stays under
+# its column (the lexer counts every character as one column)
+_BLANKS = {code: " " for code in list(range(0x20)) + [0x7F, 0x85, 0x2028, 0x2029]}
+
+
+def printable(line: str) -> str:
+    """A source line as a terminal can show it, one character per column."""
+    return line.translate(_BLANKS)
+
+
 class SourceCache:
     """The text of every file a run has read, so a diagnostic can show its source line."""
 
@@ -76,7 +112,7 @@ class SourceCache:
         self._lines: dict[str, list[str]] = {}
 
     def add(self, name: str, text: str) -> None:
-        self._lines[name] = text.splitlines()
+        self._lines[name] = source_lines(text)
 
     def alias(self, name: str, other: str) -> None:
         """Let `other` name the same text as `name` (a file as the user reached it, for printing)."""

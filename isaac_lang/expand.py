@@ -15,6 +15,7 @@ from lark.exceptions import UnexpectedInput
 from . import expr as E
 from . import units as U
 from .diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean, display_path
+from .files import BadEncoding, Confinement, FileRefused
 from .lower_expr import CONTEXTS, FIXED, BodyRef, ExprContext, ExprLowerer, Scope, Typed, ref_name
 from .syntax import parse_expression, parse_text
 
@@ -27,6 +28,7 @@ class Limits:
 
     max_items: int = 200_000  # declarations after expansion
     max_depth: int = 32  # nested includes and part instances
+    include_path: tuple = ()  # folders outside the scene's own that its includes and assets may be read from
 
 
 @dataclass
@@ -48,6 +50,9 @@ class Expansion:
     scene_names: list = field(default_factory=list)  # (name, pos)
     parameters: dict = field(default_factory=dict)  # top-level lets after overrides: name -> Typed
     used_overrides: set = field(default_factory=set)
+    folder: Path | None = None  # the scene's folder: the files it names are relative to it
+    confinement: Confinement | None = None  # where those files may be read from (isaac_lang/files.py)
+    folder: Path | None = None  # the scene's folder: where lowering reads the mesh files whose volume it integrates
 
 
 class Expander:
@@ -57,8 +62,11 @@ class Expander:
         self.reporter = reporter
         self.overrides = overrides  # name -> Typed
         self.limits = limits
-        self.out = Expansion()
+        self.out = Expansion(folder=root)
         self.include_stack: list[Path] = []
+        self.confinement = Confinement.for_scene(root, limits.include_path)
+        self.out.folder, self.out.confinement = Path(root), self.confinement
+        self.trees: dict = {}  # real path -> parse tree (None: it could not be read or parsed): read once per load
         self.count = 0  # declarations so far
         self.expansions = 0  # loop iterations and part instances so far (a loop of lets counts too)
         self.halted = False  # a runaway was reported once; the expansion then stops quietly
@@ -72,14 +80,9 @@ class Expander:
             chain = " -> ".join(display_path(p, self.root) for p in self.include_stack + [resolved])
             self.reporter.error(f"include cycle: {chain}", at, "remove one of the includes")
             return
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as error:
-            self.reporter.error(f"cannot read `{name}`: {getattr(error, 'strerror', None) or error}", at,
-                                "paths in `include` are relative to the including file")
-            return
-        self.sources.add(name, text)
-        tree = parse_text(text, name, self.reporter)
+        if resolved not in self.trees:
+            self.trees[resolved] = self._read_and_parse(path, name, at)
+        tree = self.trees[resolved]
         if tree is None:
             return
         self.include_stack.append(resolved)
@@ -87,6 +90,22 @@ class Expander:
             self.items(tree.children, scope, ExprLowerer(name, self.reporter), depth)
         finally:
             self.include_stack.pop()
+
+    def _read_and_parse(self, path: Path, name: str, at: SourcePos | None):
+        """The parse tree of a scene file, or None with the reason reported (at the include that names it, or at
+        the bad byte of a file that is not UTF-8). A refused file is never opened (isaac_lang/files.py)."""
+        try:
+            text = self.confinement.read_text(path)
+        except BadEncoding as error:
+            self.sources.add(name, error.text)
+            self.reporter.error(f"`{name}`: {error.message}", SourcePos(name, error.line, error.col), error.hint)
+            return None
+        except FileRefused as error:
+            self.reporter.error(f"cannot read `{name}`: {error.message}", at,
+                                error.hint or "paths in `include` are relative to the including file")
+            return None
+        self.sources.add(name, text)
+        return parse_text(text, name, self.reporter)
 
     # -- items --------------------------------------------------------------------------------------------
 

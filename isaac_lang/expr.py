@@ -15,6 +15,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .diagnostics import Diagnostic, SceneError, SourcePos
+
 
 class Expr:
     """Base of the expression nodes (frozen dataclasses: hashable, comparable, safe to share)."""
@@ -71,6 +73,22 @@ class Deriv(Expr):
 
     arg: Expr
     order: int = 1
+
+
+@dataclass(frozen=True)
+class Guard(Expr):
+    """A value that must be finite wherever it is evaluated (a kinematic body's path, which the runtime
+    evaluates at every step): where it is not, evaluating it raises NotFinite, naming what it is, the
+    expression, the declaration it belongs to and the first time it fails. Not part of the IR: the plan wraps
+    the paths it evaluates (runtime/kinematics.py)."""
+
+    arg: Expr
+    what: str  # e.g. "the position of body `cart` on its path"
+    source: str  # "file:line:col" of the declaration
+
+
+class NotFinite(SceneError):
+    """A guarded value that is not a finite number at some time (exit 2, at the declaration)."""
 
 
 # ---- functions the evaluator knows -----------------------------------------------------------------------
@@ -160,7 +178,7 @@ def size_of(node: Expr) -> int:
     if isinstance(node, Keys):
         first = node.values[0]
         return len(first) if isinstance(first, tuple) else 0
-    if isinstance(node, Deriv):
+    if isinstance(node, (Deriv, Guard)):
         return size_of(node.arg)
     return 0
 
@@ -170,10 +188,49 @@ def is_constant(node: Expr) -> bool:
 
 
 def free_vars(node: Expr) -> frozenset:
+    """The names of the variables in an expression (a walk with a stack: expressions may be deep)."""
     if isinstance(node, Var):
         return frozenset([node.name])
-    children = _children(node)
-    return frozenset().union(*(free_vars(c) for c in children)) if children else frozenset()
+    if isinstance(node, (Const, Str, Keys)):
+        return frozenset()
+    return frozenset(n.name for n in _walk(node) if isinstance(n, Var))
+
+
+def _walk(node: Expr):
+    """Every node of an expression, each shared node once."""
+    seen, stack = set(), [node]
+    while stack:
+        current = stack.pop()
+        if id(current) in seen:
+            continue
+        seen.add(id(current))
+        yield current
+        stack.extend(_children(current))
+
+
+def extent(node: Expr, most: int | None = None) -> tuple:
+    """(depth, count) of an expression as a tree: the longest path from it to a leaf, in nodes, and how many
+    nodes it has with every shared subtree counted each time it is used. Iterative, each shared node visited
+    once, so that a tree too deep or too large to evaluate can be measured; stops counting once past `most`."""
+    measured = {}  # id(node) -> (depth, count)
+    stack = [(node, False)]
+    while stack:
+        current, expanded = stack.pop()
+        key = id(current)
+        if key in measured:
+            continue
+        children = _children(current)
+        if expanded or not children:
+            sizes = [measured[id(c)] for c in children]
+            depth = 1 + max((d for d, _ in sizes), default=0)
+            count = 1 + sum(c for _, c in sizes)
+            measured[key] = (depth, count)
+            if most is not None and count > most:
+                return depth, count
+            continue
+        stack.append((current, True))
+        stack.extend((c, False) for c in children if id(c) not in measured)
+    return measured[id(node)]
 
 
 def _children(node: Expr) -> tuple:
@@ -183,7 +240,7 @@ def _children(node: Expr) -> tuple:
         return node.args + tuple(v for _, v in node.kwargs)
     if isinstance(node, Vec):
         return node.items
-    if isinstance(node, Deriv):
+    if isinstance(node, (Deriv, Guard)):
         return (node.arg,)
     return ()
 
@@ -216,7 +273,26 @@ def evaluate(node: Expr, env: dict, functions: dict | None = None):
         return _evaluate_numeric_derivative(node, env, functions)
     if isinstance(node, Str):
         return node.value
+    if isinstance(node, Guard):
+        return _evaluate_guarded(node, env, functions)
     raise EvaluationError(f"cannot evaluate {type(node).__name__}")
+
+
+def _evaluate_guarded(node: Guard, env, functions):
+    """A Guard's value, or NotFinite at the first time it is not finite (numpy's warnings silenced: the error
+    says it instead)."""
+    with np.errstate(all="ignore"):
+        value = evaluate(node.arg, env, functions)
+    finite = np.isfinite(np.asarray(value, dtype=float))
+    if finite.all():
+        return value
+    times = np.asarray(env.get("t", np.nan), dtype=float).reshape(-1)
+    if finite.ndim and len(times) == finite.shape[0]:  # values at many times: the first that fails
+        times = times[~finite.reshape(len(times), -1).all(axis=1)]
+    when = float(times[0]) if len(times) else math.nan
+    message = f"{node.what} is not a finite number at t = {when:.6g} s: {render(node.arg)}"
+    hint = "look for a division by zero, a log or square root of a negative number, or an overflow near that time"
+    raise NotFinite([Diagnostic(message, SourcePos.parse(node.source), hint)])
 
 
 def _lift(value, size: int, other_size: int):
@@ -352,6 +428,8 @@ def derivative(node: Expr, var: str = "t") -> Expr:
         return mul(_CHAIN_RULES[node.fn](inner), derivative(inner, var))
     if isinstance(node, Deriv):
         return Deriv(node.arg, node.order + 1)
+    if isinstance(node, Guard):
+        return Guard(derivative(node.arg, var), f"the rate of {node.what}", node.source)
     if var not in free_vars(node) and not isinstance(node, Call):
         return _zero_like(node)
     return Deriv(node, 1)
@@ -453,11 +531,13 @@ def _scaled_plain(a: Expr, b: Expr) -> Const | None:
 
 
 def _has_unknown_call(node: Expr) -> bool:
-    if isinstance(node, Call) and node.fn not in SCALAR_FUNCTIONS and node.fn not in VECTOR_FUNCTIONS:
-        return True
-    if isinstance(node, (Keys, Deriv)):
-        return True
-    return any(_has_unknown_call(c) for c in _children(node))
+    """Whether evaluating the expression needs the runtime: a signal, a keyframe table, a numeric derivative."""
+    for current in _walk(node):
+        if isinstance(current, Call) and current.fn not in SCALAR_FUNCTIONS and current.fn not in VECTOR_FUNCTIONS:
+            return True
+        if isinstance(current, (Keys, Deriv)):
+            return True
+    return False
 
 
 def to_tuple(value):
@@ -499,64 +579,5 @@ def neg(a: Expr) -> Expr:
     return fold(Op("neg", (a,)))
 
 
-# ---- JSON ------------------------------------------------------------------------------------------------
-
-def to_json(node: Expr):
-    """Canonical JSON form: a constant is its plain value; anything else an object naming its kind."""
-    if isinstance(node, Const):
-        return _plain(node.value)
-    if isinstance(node, Var):
-        return {"var": node.name}
-    if isinstance(node, Str):
-        return {"str": node.value}
-    if isinstance(node, Op):
-        return {"op": node.op, "args": [to_json(a) for a in node.args]}
-    if isinstance(node, Call):
-        out = {"call": node.fn, "args": [to_json(a) for a in node.args]}
-        if node.kwargs:
-            out["kwargs"] = {k: to_json(v) for k, v in node.kwargs}
-        return out
-    if isinstance(node, Vec):
-        return {"vec": [to_json(i) for i in node.items]}
-    if isinstance(node, Keys):
-        return {"keys": node.interp, "times": list(node.times), "values": [_plain(v) for v in node.values],
-                "order": node.order}
-    if isinstance(node, Deriv):
-        return {"deriv": to_json(node.arg), "order": node.order}
-    raise TypeError(type(node))
-
-
-def _plain(value):
-    if isinstance(value, tuple):
-        return [_plain(v) for v in value]
-    return value
-
-
-def from_json(data) -> Expr:
-    """Inverse of to_json (for reading ir.json back)."""
-    if isinstance(data, (int, float)):
-        return Const(float(data))
-    if isinstance(data, list):
-        return Const(_tuple(data))
-    if "var" in data:
-        return Var(data["var"])
-    if "str" in data:
-        return Str(data["str"])
-    if "op" in data:
-        return Op(data["op"], tuple(from_json(a) for a in data["args"]))
-    if "call" in data:
-        kwargs = tuple(sorted((k, from_json(v)) for k, v in data.get("kwargs", {}).items()))
-        return Call(data["call"], tuple(from_json(a) for a in data["args"]), kwargs)
-    if "vec" in data:
-        return Vec(tuple(from_json(i) for i in data["vec"]))
-    if "keys" in data:
-        return Keys(data["keys"], tuple(data["times"]), tuple(_tuple(v) for v in data["values"]), data["order"])
-    if "deriv" in data:
-        return Deriv(from_json(data["deriv"]), data["order"])
-    raise ValueError(f"not an expression: {data!r}")
-
-
-def _tuple(value):
-    if isinstance(value, list):
-        return tuple(_tuple(v) for v in value)
-    return float(value)
+# written out (the canonical JSON and a readable form) in a module of their own
+from .expr_forms import from_json, render, to_json  # noqa: E402

@@ -15,14 +15,14 @@ KEYWORDS = ("scene", "let", "include", "material", "body", "constraint", "kind",
             "camera", "light", "solver", "exclude", "part", "use", "for")
 WORDS = ("in", "during", "from", "until", "on", "world", "keys")
 # shapes, motions, solver plans, integrators and switches: words that stand for a choice
-CHOICES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh", "dynamic", "static", "kinematic",
+CHOICES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh", "compound", "dynamic", "static", "kinematic",
            "dynamics", "procedural", "auto", "rk4", "euler", "midpoint", "dense", "sparse", "tree", "direct",
            "gauss_seidel", "projection", "baumgarte", "distant", "point", "spot", "ambient", "none", "inverse",
            "inverse_square", "linear", "cubic", "step", "true", "false", "yes", "no", "off", "always")
 # every property of a block and every scene setting (isaac_lang.lower and lower_constraints tables)
 PROPERTIES = ("air", "area", "at", "audio", "channels", "collide", "color", "compliance", "damping", "delay",
               "density", "direction", "distance", "drag", "falloff", "file", "force", "fov", "frames", "friction",
-              "from", "gain", "gravity", "gust", "inertia", "integrator", "intensity", "iterations", "length",
+              "from", "gain", "gravity", "gust", "inertia", "integrator", "intensity", "iterations", "kinematic", "length",
               "linear", "listener", "look", "loss", "mass", "material", "modes", "normal", "orient", "play",
               "poisson", "projection", "radius", "rate", "rayleigh", "rest", "restitution", "roughness", "scale",
               "seed", "size", "speed", "spin", "spread", "stabilization", "stabilize", "step", "stiffness",

@@ -84,13 +84,33 @@ class Material:
 
 @dataclass(frozen=True)
 class Shape:
-    type: str  # sphere | box | cylinder | capsule | plane | mesh
+    type: str  # sphere | box | cylinder | capsule | plane | mesh | compound
     radius: float | None = None
     length: float | None = None  # cylinder/capsule length along body z (capsule: of the straight part)
     size: Vec3 | None = None  # box edge lengths
     normal: Vec3 | None = None  # plane
     file: str | None = None  # mesh (OBJ/STL), relative to the scene folder
     scale: float = 1.0
+    # where, in the body frame (origin at the centre of mass), the shape's own origin sits: the point `at` places
+    # and body points `a @ p` are measured from (a mesh file's origin; the origin a compound's parts are written
+    # about); (0, 0, 0) for the primitives, whose origin is their centre
+    offset: Vec3 = (0.0, 0.0, 0.0)
+    parts: tuple = ()  # a compound's Parts (type "compound")
+
+
+@dataclass(frozen=True)
+class Part:
+    """One shape of a compound body (docs/compound.md), posed about the compound's origin (Shape.offset): a
+    body-frame point of the part's own frame p is offset + position + R(orientation) p."""
+
+    name: str
+    shape: Shape  # a primitive or a mesh (never a plane or a compound); its own offset is (0, 0, 0)
+    position: Vec3  # its origin (a primitive's centre, a mesh file's origin) about the compound's origin
+    orientation: tuple  # (w, x, y, z)
+    mass: float | None  # kg; None only in a static or kinematic body without densities
+    material: str | None  # its own, or the body's
+    modes: tuple | None  # ((frequency Hz, decay 1/s, gain), ...) for modal sound
+    source: str
 
 
 @dataclass(frozen=True)
@@ -116,6 +136,7 @@ class Body:
     wind: WindResponse
     modes: tuple | None  # ((frequency Hz, decay 1/s, gain), ...) for modal sound
     source: str
+    path_window: tuple | None = None  # (start, end) s: a dynamic body on its path (kinematic) in this window
 
 
 @dataclass(frozen=True)
@@ -231,6 +252,9 @@ class Scene:
     parameters: tuple  # ((name, value), ...) the scene's `let`s after --set overrides
     air_density: float = 1.2  # kg/m3: the drag of bodies that feel air, in still air and in the winds
     schema: str = SCHEMA
+    # where each scene-wide setting was written: (("time", "file:line:col"), ("solver.step", ...), ...), so that
+    # the plan can point at the setting a budget is about; not part of the canonical IR (no JSON, no comparison)
+    origins: tuple = field(default=(), compare=False, repr=False, metadata={"ir": False})
 
     def body(self, name: str) -> Body:
         for body in self.bodies:
@@ -241,6 +265,10 @@ class Scene:
     def body_index(self) -> dict:
         return {body.name: i for i, body in enumerate(self.bodies)}
 
+    def origin(self, setting: str) -> str | None:
+        """Where a scene-wide setting (`time`, `frames`, `solver.step`, `audio.rate`, ...) was written, if it was."""
+        return dict(self.origins).get(setting)
+
 
 # ---- canonical JSON --------------------------------------------------------------------------------------
 
@@ -249,7 +277,8 @@ def to_data(value):
     if isinstance(value, E.Expr):
         return E.to_json(value)
     if dataclasses.is_dataclass(value):
-        return {f.name: to_data(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        return {f.name: to_data(getattr(value, f.name)) for f in dataclasses.fields(value)
+                if f.metadata.get("ir", True)}
     if isinstance(value, tuple) and value and all(isinstance(v, tuple) and len(v) == 2 and isinstance(v[0], str)
                                                   for v in value) and _is_pairs(value):
         return {k: to_data(v) for k, v in value}

@@ -8,17 +8,19 @@ import numpy as np
 
 from . import expr as E
 from . import ir
+from . import lower_compound as C
 from . import mass as M
 from . import units as U
 from .diagnostics import Reporter, SceneError, SourcePos, did_you_mean
 from .expand import Decl, Expansion
 from .lower_constraints import ConstraintLowerer
+from .origins import setting_origins
 from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, is_table, ref_name
 from .props import Props
 from .syntax import KEYWORDS
 
 AIR_DENSITY = 1.2  # kg/m3, air at sea level and 20 C
-SHAPES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh")
+SHAPES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh", "compound")
 MOTIONS = ("dynamic", "static", "kinematic")
 
 SETTINGS = {"time": "start .. end", "gravity": "acceleration vector", "frames": "output frame rate",
@@ -37,10 +39,11 @@ MATERIAL_PROPS = {"density": "kg/m3", "friction": "Coulomb coefficient", "restit
                   "rayleigh": "(alpha, beta)", "roughness": "surface height scale", "texture": "height profile file"}
 BODY_PROPS = {"radius": "length", "length": "length along z", "size": "box edges", "normal": "plane normal",
               "file": "mesh file", "scale": "mesh scale", "mass": "kg", "density": "kg/m3",
-              "inertia": "principal moments", "at": "centre of mass", "orient": "orientation",
+              "inertia": "principal moments", "at": "its origin (a primitive's centre)", "orient": "orientation",
               "velocity": "initial velocity", "spin": "initial angular velocity", "material": "material name",
               "collide": "on | off", "wind": "on | off", "drag": "drag coefficient", "area": "area facing the wind",
-              "modes": "((f, decay, gain), ...)"}
+              "modes": "((f, decay, gain), ...)",
+              "kinematic": "START .. END: on its path then, dynamic before and after"}
 WIND_PROPS = {"direction": "where the air goes", "from": "source point", "toward": "direction from the source",
               "speed": "m/s, may follow t or a breath", "falloff": "none | inverse | inverse_square",
               "distance": "reference distance of the falloff", "spread": "cone half-angle",
@@ -52,7 +55,8 @@ AUDIO_PROPS = {"rate": "sample rate", "channels": "1 or 2"}
 # the words that open a constraint's time window: a misspelled one after a constraint reads as a setting
 WINDOW_WORDS = ("during", "from", "until")
 
-DEFAULT_DRAG = {"sphere": 0.47, "box": 1.05, "cylinder": 0.82, "capsule": 0.82, "mesh": 1.0, "plane": 1.17}
+DEFAULT_DRAG = {"sphere": 0.47, "box": 1.05, "cylinder": 0.82, "capsule": 0.82, "mesh": 1.0, "plane": 1.17,
+                "compound": 1.05}
 
 
 class SceneLowerer:
@@ -95,7 +99,7 @@ class SceneLowerer:
             constraints=tuple(constraints), forces=tuple(forces), winds=tuple(winds), sounds=tuple(sounds),
             exclusions=tuple(exclusions), listener=settings["listener"], audio=settings["audio"],
             parameters=tuple(sorted((k, _plain(v.node)) for k, v in self.x.parameters.items())),
-            air_density=settings["air"],
+            air_density=settings["air"], origins=setting_origins(self.x),
         )
 
     def _each(self, decls, build) -> list:
@@ -230,15 +234,26 @@ class SceneLowerer:
 
     def _body(self, decl: Decl) -> ir.Body:
         words = [t for t in decl.tree.children[1:-1]]
-        shape_word, motion = self._body_words(words, decl)
+        block = decl.tree.children[-1]
+        shape_word, motion = self._body_words(words, decl, C.pieces_of(block))
         what = f"body `{decl.name}`"
-        props = Props(decl.tree.children[-1], BODY_PROPS, what, decl.lowerer, decl.scope)
-        shape = self._shape(shape_word, props, decl)
+        props = Props(block, BODY_PROPS, what, decl.lowerer, decl.scope, items=C.properties_of(block))
+        shape = None if shape_word == "compound" else self._shape(shape_word, props, decl)
         material = self._material_of(props)
-        kinematic = motion == "kinematic"
+        # a dynamic body may follow its path for a while: `kinematic START .. END` (docs/motion.md)
+        window = props.range("kinematic", U.TIME)
+        if window is not None and (motion != "dynamic" or window[1] <= window[0]):
+            raise decl.lowerer.fail("`kinematic START .. END` is for a dynamic body, with END after START",
+                                    props.node("kinematic"), "a body that follows its path throughout is "
+                                    "`body NAME kinematic SHAPE { ... }`")
+        kinematic = motion == "kinematic" or window is not None
         position = props.vector("at", U.LENGTH, E.Const((0.0, 0.0, 0.0)), time=kinematic)
         orientation = self._orientation(props, kinematic)
-        mass, inertia = self._mass_properties(shape, motion, props, material, decl)
+        if shape is None:  # a body made of parts (docs/compound.md)
+            mass, inertia, shape = C.CompoundLowerer(self, decl, props).lower(motion, material)
+        else:
+            mass, inertia, shape = self._mass_properties(shape, motion, props, material, decl)
+        position = C.placed(position, orientation, shape.offset)  # `at` places the shape's origin
         body = ir.Body(
             name=decl.name, shape=shape, motion=motion, mass=mass, inertia=inertia,
             position=_as_expr(position), orientation=_as_expr(orientation),
@@ -251,11 +266,12 @@ class SceneLowerer:
                                  props.scalar("area", U.AREA)),
             modes=self._modes(props),
             source=str(decl.lowerer.pos(decl.tree)),
+            path_window=window,
         )
         self.bodies[decl.name] = body
         return body
 
-    def _body_words(self, words, decl: Decl):
+    def _body_words(self, words, decl: Decl, pieces=()):
         shape_word, motion = None, "dynamic"
         for word in words:
             text = str(word)
@@ -267,9 +283,19 @@ class SceneLowerer:
                 raise decl.lowerer.fail(f"`{text}` is not a shape or a motion", word,
                                         did_you_mean(text, SHAPES + MOTIONS) or
                                         "shapes: " + ", ".join(SHAPES) + "; motions: " + ", ".join(MOTIONS))
+        parts = [p for p in pieces if p.data != "let_stmt"]
+        if shape_word is None and parts:
+            shape_word = "compound"  # `body hammer { part ... }`
         if shape_word is None:
             raise decl.lowerer.fail(f"body `{decl.name}` has no shape", decl.tree.children[0],
                                     "write e.g. `body ball sphere { radius 5 cm }`")
+        if shape_word == "compound" and not parts:
+            raise decl.lowerer.fail(f"body `{decl.name}`: a compound body is made of parts", decl.tree.children[0],
+                                    "write `body NAME compound { part NAME SHAPE { ... } ... }`")
+        if shape_word != "compound" and pieces:
+            raise decl.lowerer.fail(f"body `{decl.name}`: a {shape_word} has no parts or `let`s; a body made of "
+                                    "parts is a compound", pieces[0],
+                                    "write `body NAME compound { part NAME SHAPE { ... } ... }`")
         if shape_word == "plane" and motion == "dynamic":
             motion = "static"  # an infinite plane cannot move
         return shape_word, motion
@@ -338,21 +364,23 @@ class SceneLowerer:
         density = props.scalar("density", U.DENSITY, material.density if material else None)
         self._positive(mass, "mass", props)
         self._positive(density if props.has("density") else None, "density", props)
+        if shape.type == "mesh":  # its mass properties from the file (volume integrals), unless given
+            return C.mesh_body(self, shape, motion, props, mass, density, decl)
         volume = M.volume(shape)
         if mass is None and density is not None and volume is not None:
             mass = density * volume
         if mass is None:
             if motion != "dynamic":
-                return None, None
+                return None, None, shape
             raise decl.lowerer.fail(f"body `{decl.name}` needs a mass", decl.tree.children[0],
                                     "give `mass 1 kg`, a `density`, or a material with a density")
         given = props.vector("inertia", U.INERTIA)
         if given is not None:
             if min(given) <= 0:
                 raise decl.lowerer.fail("principal moments of inertia must be positive", props.node("inertia"))
-            return mass, M.diagonal(given)
+            return mass, M.diagonal(given), shape
         moments = M.inertia(shape, mass)
-        return mass, (M.diagonal(moments) if moments else None)
+        return mass, (M.diagonal(moments) if moments else None), shape
 
     def _modes(self, props: Props):
         if not props.has("modes"):

@@ -160,6 +160,8 @@ class ConstraintLowerer:
             if tree.data == "world_anchor":
                 x0, R0 = self.pose(body)
                 point = R0.T @ (point - x0)
+            else:  # measured from the body's origin (a compound's or a mesh's need not be its centre of mass)
+                point = point + np.asarray(self.scene.bodies[body].shape.offset, float)
             return body, tuple(float(v) for v in point)
         if isinstance(tree, Tree) and tree.data == "name_ref":
             return self.body(tree, scope, decl), (0.0, 0.0, 0.0)
@@ -170,12 +172,31 @@ class ConstraintLowerer:
         node = decl.lowerer.coerce(value, dim, what, tree, size=3)
         return node if time else tuple(node.value)
 
-    def scalar(self, tree, scope, decl, dim, what):
-        value = decl.lowerer.lower(tree, scope, FIXED)
-        return decl.lowerer.constant(value, dim, what, tree)
+    def moving_vector(self, tree, scope, decl, dim, what):
+        """A world vector that may be a function of time: a tuple when it is not, else its expression."""
+        node = self.vector(tree, scope, decl, dim, what, time=True)
+        return tuple(float(v) for v in node.value) if isinstance(node, E.Const) else node
 
-    def direction(self, tree, scope, decl):
-        """(body or None, unit vector in that body's frame): `a.x`, `-a.y`, `x`, `(0, 0, 1)`, a vector let."""
+    def scalar(self, tree, scope, decl, dim, what, time=False):
+        value = decl.lowerer.lower(tree, scope, CONTEXTS[time, False])
+        if not time:
+            return decl.lowerer.constant(value, dim, what, tree)
+        node = decl.lowerer.coerce(value, dim, what, tree)
+        return float(node.value) if isinstance(node, E.Const) else node
+
+    def _unit_of_time(self, node, tree, decl):
+        """A world direction of time must stay a unit vector (checked over the first minute)."""
+        for t in np.linspace(0.0, 60.0, 241):
+            length = float(np.linalg.norm(E.evaluate(node, {"t": float(t)})))
+            if abs(length - 1.0) > 1e-9:
+                raise decl.lowerer.fail(f"a direction that changes over time must stay of length 1 (it is "
+                                        f"{length:.6g} at t = {t:g} s)", tree,
+                                        "e.g. `(cos(w * t), sin(w * t), 0)`")
+        return node
+
+    def direction(self, tree, scope, decl, time=False):
+        """(body or None, unit vector in that body's frame): `a.x`, `-a.y`, `x`, `(0, 0, 1)`, a vector let; with
+        `time`, a world direction may be a function of time (its expression, checked to stay of length 1)."""
         sign = 1.0
         while isinstance(tree, Tree) and tree.data == "neg":
             sign, tree = -sign, tree.children[0]
@@ -189,6 +210,10 @@ class ConstraintLowerer:
                     raise decl.lowerer.fail(f"`{parts[-1]}` is not an axis", tree, "body axes are x, y and z")
                 body = self.scene.resolve_body_name(".".join(parts[:-1]), tree, scope, decl.lowerer)
                 return body, tuple(sign * v for v in AXES[parts[-1]])
+        if time:
+            moving = self.moving_vector(tree, scope, decl, U.DIMENSIONLESS, "a direction")
+            if not isinstance(moving, tuple):
+                return None, self._unit_of_time(E.mul(moving, E.Const(sign)), tree, decl)
         vec = np.array(self.vector(tree, scope, decl, U.DIMENSIONLESS, "a direction")) * sign
         norm = np.linalg.norm(vec)
         if norm == 0:
@@ -235,12 +260,12 @@ class ConstraintLowerer:
     def _lib_orient(self, args, tree, scope, decl):
         if len(args) == 2:
             body_a, axis_a = self.direction(args[0], scope, decl)
-            body_b, axis_b = self.direction(args[1], scope, decl)
+            body_b, axis_b = self.direction(args[1], scope, decl, time=True)
         elif len(args) in (3, 4):
             body_a = self.body(args[0], scope, decl)
             _, axis_a = self.direction(args[1], scope, decl)
             body_b = self.body(args[2], scope, decl) if len(args) == 4 else None
-            _, axis_b = self.direction(args[-1], scope, decl)
+            _, axis_b = self.direction(args[-1], scope, decl, time=body_b is None)
         else:
             raise decl.lowerer.fail("`orient` takes (a.axis, direction), (a.axis, b.axis), (a, T, N) or "
                                     "(a, T, b, N)", tree)
@@ -256,8 +281,8 @@ class ConstraintLowerer:
         if isinstance(args[1], Tree) and args[1].data in ("anchor", "world_anchor"):
             body_b, plane_point = self.anchor(args[1], scope, decl)
         else:
-            plane_point = self.vector(args[1], scope, decl, U.LENGTH, "the plane's point")
-        normal_body, normal = self.direction(args[2], scope, decl)
+            plane_point = self.moving_vector(args[1], scope, decl, U.LENGTH, "the plane's point")
+        normal_body, normal = self.direction(args[2], scope, decl, time=body_b is None)
         if normal_body is not None and normal_body != body_b:
             raise decl.lowerer.fail("the normal must belong to the same body as the plane's point", args[2])
         bodies = (body_a,) if body_b is None else (body_a, body_b)
@@ -269,8 +294,12 @@ class ConstraintLowerer:
         gears = []
         for body_tree, radius_tree in ((args[0], args[1]), (args[2], args[3])):
             body, axis = self._gear_axis(body_tree, scope, decl)
-            radius = self.scalar(radius_tree, scope, decl, U.LENGTH, "a gear radius")
-            if radius <= 0:
+            radius = self.scalar(radius_tree, scope, decl, U.LENGTH, "a gear radius", time=True)
+            if not isinstance(radius, float):  # a radius of time: positive over the first minute
+                lowest = min(float(E.evaluate(radius, {"t": float(t)})) for t in np.linspace(0.0, 60.0, 241))
+                if lowest <= 0:
+                    raise decl.lowerer.fail("a gear radius must stay positive", radius_tree)
+            elif radius <= 0:
                 raise decl.lowerer.fail("a gear radius must be positive", radius_tree)
             gears.append((body, axis, radius))
         (a, axis_a, ra), (b, axis_b, rb) = gears

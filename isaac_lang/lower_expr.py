@@ -13,10 +13,18 @@ from dataclasses import dataclass, field
 from lark import Token, Tree
 
 from . import expr as E
+from . import lower_chains as chains
 from . import units as U
 from .diagnostics import Reporter, SourcePos, SceneError, did_you_mean
 
 AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+# the deepest nesting of brackets, calls and vectors lowered (each level a few Python frames; chains of one
+# operator do not count, lower_chains.py)
+MAX_NESTING = 64
+# the deepest expression, and the most operations in one (its `let`s written out), the runtime is given: it
+# evaluates and differentiates them by recursion, and a kinematic path once per step
+MAX_EXPR_DEPTH = 100
+MAX_EXPR_NODES = 100_000
 
 # functions of motion that only the runtime can evaluate (a recorded envelope, a live microphone, gusts)
 SIGNAL_FUNCTIONS = {"envelope", "mic", "noise", "gust"}
@@ -118,6 +126,7 @@ class ExprLowerer:
     def __init__(self, file: str, reporter: Reporter):
         self.file = file
         self.reporter = reporter
+        self.nesting = 0  # how many `lower` calls are open: brackets, calls and vectors inside one another
 
     # -- positions ----------------------------------------------------------------------------------------
 
@@ -136,6 +145,35 @@ class ExprLowerer:
     # -- the walk -----------------------------------------------------------------------------------------
 
     def lower(self, tree, scope: Scope, ctx: ExprContext) -> Typed:
+        """The value of an expression's parse tree. Chains of one operator are lowered by loops
+        (lower_chains.py); other nesting (brackets, calls, vectors) by recursion, at most MAX_NESTING deep; the
+        finished expression is at most MAX_EXPR_DEPTH deep and MAX_EXPR_NODES large."""
+        if self.nesting >= MAX_NESTING:
+            raise self.fail(f"this expression nests more than {MAX_NESTING} levels deep (brackets, calls or "
+                            "vectors inside one another)", tree, "give its inner parts names with `let`")
+        self.nesting += 1
+        try:
+            value = self._lower_tree(tree, scope, ctx)
+        finally:
+            self.nesting -= 1
+        if type(value.node) is not E.Const and self.nesting == 0:
+            self._check_extent(value.node, tree)
+        return value
+
+    def _check_extent(self, node: E.Expr, tree) -> None:
+        """An expression the runtime can evaluate, differentiate and print without deep recursion or a tree of
+        millions of nodes (a `let` used twice in the next, and so on, doubles the tree each time)."""
+        depth, count = E.extent(node, MAX_EXPR_NODES)
+        if depth > MAX_EXPR_DEPTH:
+            raise self.fail(f"this expression is {depth} operations deep, more than the {MAX_EXPR_DEPTH} the "
+                            "runtime evaluates", tree, "write it with fewer nested operations (a tower of "
+                            "powers of t, functions of functions)")
+        if count > MAX_EXPR_NODES:
+            raise self.fail(f"this expression has more than {MAX_EXPR_NODES} operations once its `let`s are "
+                            "written out", tree, "a `let` used twice in the next one doubles the expression: "
+                            "use fewer of them")
+
+    def _lower_tree(self, tree, scope: Scope, ctx: ExprContext) -> Typed:
         if isinstance(tree, Token):
             raise self.fail(f"unexpected `{tree}`", tree)
         method = _RULES.get(tree.data)
@@ -202,51 +240,20 @@ class ExprLowerer:
         return Typed(E.fold(E.Vec(tuple(i.node for i in items))), dim)
 
     def _neg(self, tree, scope, ctx) -> Typed:
-        value = self.lower(tree.children[0], scope, ctx)
-        return Typed(E.neg(value.node), value.dim)
+        return chains.lower_negation(self, tree, scope, ctx)
 
     def _add(self, tree, scope, ctx) -> Typed:
-        return self._sum(tree, scope, ctx, E.add)
+        return chains.lower_sum(self, tree, scope, ctx)
 
-    def _sub(self, tree, scope, ctx) -> Typed:
-        return self._sum(tree, scope, ctx, E.sub)
-
-    def _sum(self, tree, scope, ctx, build) -> Typed:
-        a, b = (self.lower(child, scope, ctx) for child in tree.children)
-        try:
-            dim = U.unify(a.dim, b.dim)
-        except U.UnitError as error:
-            raise self.fail(str(error), tree)
-        if a.size and b.size and a.size != b.size:
-            raise self.fail(f"cannot combine a {a.size}-vector and a {b.size}-vector", tree)
-        return Typed(build(a.node, b.node), dim)
+    _sub = _add
 
     def _mul(self, tree, scope, ctx) -> Typed:
-        a, b = (self.lower(child, scope, ctx) for child in tree.children)
-        if a.size and b.size:
-            raise self.fail("cannot multiply two vectors with `*`", tree, "use dot(a, b) or cross(a, b)")
-        return Typed(E.mul(a.node, b.node), U.combine(a.dim, b.dim, +1))
+        return chains.lower_product(self, tree, scope, ctx)
 
-    def _div(self, tree, scope, ctx) -> Typed:
-        a, b = (self.lower(child, scope, ctx) for child in tree.children)
-        if b.size:
-            raise self.fail("cannot divide by a vector", tree)
-        return Typed(E.fold(E.Op("div", (a.node, b.node))), U.combine(a.dim, b.dim, -1))
+    _div = _mul
 
     def _pow(self, tree, scope, ctx) -> Typed:
-        a, b = (self.lower(child, scope, ctx) for child in tree.children)
-        if b.dim not in (None, U.DIMENSIONLESS):
-            raise self.fail("an exponent must be a plain number", tree.children[1])
-        if a.dim not in (None, U.DIMENSIONLESS):
-            if not isinstance(b.node, E.Const):
-                raise self.fail("a quantity with a unit needs a constant exponent", tree.children[1])
-            try:
-                dim = U.scale_dim(a.dim, b.node.value)
-            except U.UnitError as error:
-                raise self.fail(str(error), tree)
-        else:
-            dim = a.dim
-        return Typed(E.fold(E.Op("pow", (a.node, b.node))), dim)
+        return chains.lower_power(self, tree, scope, ctx)
 
     def _name_ref(self, tree, scope, ctx) -> Typed:
         if len(tree.children) > 1:
@@ -425,10 +432,18 @@ class ExprLowerer:
 # the method lowering each kind of tree: `number` -> `ExprLowerer._number` (one look-up per node)
 _RULES = {name: getattr(ExprLowerer, "_" + name) for name in (
     "number", "string", "quantity", "vector", "neg", "add", "sub", "mul", "div", "pow", "name_ref", "call", "keys")}
+
+
 def _written_in_hertz(tree) -> bool:
-    """Whether a unit in the source of this expression is Hz or kHz."""
-    tokens = tree.scan_values(lambda v: isinstance(v, Token)) if hasattr(tree, "scan_values") else [tree]
-    return any("Hz" in str(token) for token in tokens if getattr(token, "type", "") != "STRING")
+    """Whether a unit in the source of this expression is Hz or kHz (a walk with a stack: trees may be deep)."""
+    stack = [tree]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, Tree):
+            stack.extend(node.children)
+        elif isinstance(node, Token) and node.type != "STRING" and "Hz" in node:
+            return True
+    return False
 
 
 UNITS_HINT = "units: m cm mm kg g s ms deg rad Hz N Pa GPa, combined as kg/m3"

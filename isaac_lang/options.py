@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
+from contextlib import contextmanager
 
 from . import units as U
 from .diagnostics import did_you_mean
@@ -112,3 +114,69 @@ def join_time_units(argv: list, options=("--step", "--until")) -> list:
             out.append(word)
             k += 1
     return out
+
+
+# ---- files and budgets ----------------------------------------------------------------------------------------
+
+# trees of the system where no output folder or include folder belongs
+SYSTEM_TREES = ("/proc", "/sys", "/dev")
+
+
+def output_folder(text: str) -> str:
+    """--out: a folder that is (or can be made) a folder of ours: not a file, a device or a system tree, and
+    writable where it would be made."""
+    real = os.path.realpath(text)
+    if any(real == tree or real.startswith(tree + "/") for tree in SYSTEM_TREES):
+        raise argparse.ArgumentTypeError(f"`{text}` is in {real.split('/')[1] and '/' + real.split('/')[1]}, "
+                                         "not a place for outputs")
+    if os.path.exists(real) and not os.path.isdir(real):
+        raise argparse.ArgumentTypeError(f"`{text}` is a file, not a folder (the outputs are a folder of files)")
+    existing = real
+    while not os.path.exists(existing):
+        existing = os.path.dirname(existing)
+    if not os.path.isdir(existing):
+        raise argparse.ArgumentTypeError(f"`{text}` cannot be made: `{existing}` is a file")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"`{text}`: `{existing}` is not writable")
+    return text
+
+
+def include_folder(text: str) -> str:
+    """--include-path: an existing folder whose files a scene may include and name (isaac_lang/files.py)."""
+    real = os.path.realpath(text)
+    if not os.path.isdir(real):
+        raise argparse.ArgumentTypeError(f"`{text}` is not a folder")
+    if real == "/" or any(real == tree or real.startswith(tree + "/") for tree in SYSTEM_TREES):
+        raise argparse.ArgumentTypeError(f"`{text}` is a system folder: a scene may not read from it")
+    return text
+
+
+def budget(text: str) -> str:
+    """--budget NAME=VALUE[,NAME=VALUE...]: checked as runtime/budgets.py reads them (docs/budgets.md)."""
+    from isaac_runtime.budgets import parse_budgets
+
+    try:
+        parse_budgets(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return text
+
+
+@contextmanager
+def budget_environment(values):
+    """The --budget values in ISAAC_BUDGET (after any the environment gave) while a command runs, so that every
+    plan it makes, in this process or in the processes it starts, holds to them."""
+    from isaac_runtime.budgets import ENVIRONMENT
+
+    if not values:
+        yield
+        return
+    before = os.environ.get(ENVIRONMENT)
+    os.environ[ENVIRONMENT] = ",".join(([before] if before else []) + list(values))
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(ENVIRONMENT, None)
+        else:
+            os.environ[ENVIRONMENT] = before

@@ -13,7 +13,7 @@ from importlib import resources
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
-from .diagnostics import Reporter, SourcePos, did_you_mean
+from .diagnostics import Reporter, SourcePos, did_you_mean, source_lines
 from .parse_loop import ParseLoop, Rejected
 
 KEYWORDS = ("scene", "let", "include", "material", "body", "constraint", "kind", "force", "wind", "sound",
@@ -80,7 +80,7 @@ def describe_syntax_error(error: UnexpectedInput, text: str, file: str):
         char = text[error.pos_in_stream] if error.pos_in_stream < len(text) else "?"
         return f"unexpected character `{char}`", SourcePos(file, line, col), _hint_for_character(char)
     if isinstance(error, UnexpectedEOF) or (isinstance(error, UnexpectedToken) and error.token.type == "$END"):
-        lines = text.splitlines() or [""]
+        lines = source_lines(text) or [""]
         pos = SourcePos(file, len(lines), len(lines[-1]) + 1)
         expected = _expected(error)
         hint = _unclosed_brace(text) if "RBRACE" in (getattr(error, "expected", None) or ()) else None
@@ -98,7 +98,7 @@ def describe_syntax_error(error: UnexpectedInput, text: str, file: str):
 
 def _misspelled_keyword(token: Token, text: str):
     """(word, column, hint) when the line of a syntax error opens with a near miss of a keyword."""
-    lines = text.splitlines()
+    lines = source_lines(text)
     if not token.line or token.line > len(lines):
         return None
     match = re.match(r"\s*([A-Za-z_][A-Za-z0-9_]*)", lines[token.line - 1])
@@ -137,7 +137,7 @@ def _token_text(token: Token) -> str:
 def _unclosed_brace(text: str) -> str:
     """Where the `{` that was never closed stands (comments and strings skipped)."""
     stack = []
-    for number, line in enumerate(text.splitlines(), start=1):
+    for number, line in enumerate(source_lines(text), start=1):
         code = line.split("#")[0].split("//")[0]
         in_string = False
         for col, char in enumerate(code, start=1):

@@ -1,6 +1,6 @@
 """`isaac watch SCENE`: live reload. Every save of the scene, or of a file it includes, is re-parsed, re-planned
 and re-run; a valid scene replaces the shown result, a bad edit prints its diagnostic and the last good result
-stays. A scene error never ends the watch; Ctrl-C does, cleanly.
+stays. Nothing a save brings ends the watch, a bug of ours included; Ctrl-C does, cleanly.
 
 The stages of one reload (Watch.reload):
     load   parse -> expand -> lower -> check (isaac_lang.load); a SceneError ends the reload here
@@ -9,8 +9,11 @@ The stages of one reload (Watch.reload):
            FIRST_RESULT seconds of work and then every PUBLISH_EVERY seconds; a newer save cancels it
     write  at the end, the outputs of `isaac run` (trajectory, events, IR, report), viewer.html and plots
 
-Files are watched through their folders (watchfiles, i.e. inotify/FSEvents/ReadDirectoryChangesW), because an
-editor saves by writing a new file and renaming it over the old one: a watch on the old file would see nothing.
+The output folder holds one result's files at a time (runtime/outputset.py): a result's first showing replaces the
+folder with its viewer.html (the frames so far), each later showing likewise, and its end with the whole set.
+An internal error (in loading, in the run thread, in the file watch) is said in one line with the file its
+traceback went to; the page says it too (state `error`), the last good result stays shown, and the next save is
+tried afresh (a save of the same scene re-runs a result that failed so). The file watch is isaac_lang/watch_files.py.
 Latency is measured from the save (the saved file's modification time) to the moment the new result is in
 viewer.html and on the live page; both the first result and the complete run are reported.
 The runtime is imported lazily (the front end never needs the solvers).
@@ -18,21 +21,20 @@ The runtime is imported lazily (the front end never needs the solvers).
 from __future__ import annotations
 
 import dataclasses
-import queue
 import sys
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .crash import internal_error
 from .diagnostics import Diagnostic, SceneError, SourceCache
+from .watch_files import FileWatcher
 
 # seconds of stepping (after planning) before the first frames are shown: the motion has begun, the wait is short
 FIRST_RESULT = 0.2
 # seconds between later showings while the run goes on
 PUBLISH_EVERY = 1.0
-# how often the fallback poller (no watchfiles, or --poll) looks at the files
-POLL_INTERVAL = 0.1
 
 
 class Superseded(Exception):
@@ -66,13 +68,14 @@ class Job:
     sources: SourceCache  # the text the scene was loaded from (for diagnostics found later)
     cancel: threading.Event = field(default_factory=threading.Event)
     cancel_reason: str = ""
-    state: str = "running"  # then complete or failed (a numerical blow-up)
+    state: str = "running"  # then complete, failed (a numerical blow-up) or error (a scene error, or ours)
     message: str = ""
     failed: str | None = None  # the blow-up's message
     first_frame: float | None = None  # perf_counter when the first frame was recorded (the plan is made)
     shown_at: float | None = None  # perf_counter of the last showing
     first_latency: float | None = None
     thread: threading.Thread | None = None
+    crashed: bool = False  # ended by an internal error: a save of the same scene runs it again
 
 
 @dataclass
@@ -114,16 +117,15 @@ class Watch:
             self.server = LiveServer(self.path.stem, self.options.port)
         # the runtime loads while the scene does: the first result does not wait for imports
         threading.Thread(target=_warm_up, name="isaac-imports", daemon=True).start()
-        files = FileWatcher(self._folders, self.options.poll, self.say)
+        files = FileWatcher(self._folders, self.options.poll, self.say, files=lambda: self.files)
         self.say(f"watching {self.path} (Ctrl-C to stop)" +
                  (f"; live viewer at {self.server.url}" if self.server else ""))
         try:
             files.start()  # before the first load: a save during it is not missed
-            self.reload(time.time(), "start")
+            self.reload_safely(time.time(), "start")
             while True:
-                relevant = self.relevant(files.next_changes())
-                if relevant:
-                    self.reload(_saved_at(relevant), ", ".join(sorted(_short(p, self.folder) for p in relevant)))
+                changed = files.next_changes()
+                self.reload_safely(None, "", changed)
         except KeyboardInterrupt:
             pass
         finally:
@@ -148,6 +150,20 @@ class Watch:
 
     # -- one reload -----------------------------------------------------------------------------------------
 
+    def reload_safely(self, saved_at: float | None, what: str, changed: set | None = None) -> None:
+        """reload for the changed paths that matter (all of them when changed is None); an internal error is
+        said, and the watch goes on."""
+        try:
+            if changed is not None:
+                relevant = self.relevant(changed)
+                if not relevant:
+                    return
+                saved_at = _saved_at(relevant)
+                what = ", ".join(sorted(_short(p, self.folder) for p in relevant))
+            self.reload(saved_at, what)
+        except Exception as error:  # a bug of ours in the front end (or in starting the run): never the end
+            self.report_internal(error, what)
+
     def reload(self, saved_at: float, what: str) -> None:
         from . import ir
         from .load import load_scene
@@ -167,7 +183,7 @@ class Watch:
         self.files = sources.files | {self.path.resolve()} | _named_files(loaded.scene, self.folder)
         self.say_warnings(loaded.warnings, sources)
         canonical = ir.to_json(loaded.scene)
-        if canonical == self.good_ir and self.job is not None:
+        if canonical == self.good_ir and self.job is not None and not self.job.crashed:
             self.say(f"{what}: no change to the scene (same IR); result #{self.job.n} stays")
             if self.server:  # the diagnostic of an edit in between goes; the result's own status comes back
                 self.server.set_status(state=self.job.state, message=self.job.message, diagnostic=self.job.failed)
@@ -203,6 +219,17 @@ class Watch:
             print(text, file=sys.stderr, flush=True)
         self.say(f"scene error: {kept}; fix the scene and save")
 
+    def report_internal(self, error: Exception, what: str) -> None:
+        """A bug of ours while loading: one line (and the traceback's file); the last good result stays, and any
+        scene file's next save is tried."""
+        line = internal_error(error)
+        kept = f"the last good result (#{self.job.n}) stays" if self.job else "no result yet"
+        self.last_ok = False
+        self.scene_error = line  # on the page while the last good result goes on running
+        if self.server:
+            self.server.set_status(state="error", diagnostic=line, message=f"internal error: {kept}")
+        self.say(f"{what + ': ' if what else ''}{line}; {kept}; still watching")
+
     # -- the run --------------------------------------------------------------------------------------------
 
     def start_job(self, job: Job) -> None:
@@ -219,8 +246,10 @@ class Watch:
 
     def _run_job(self, job: Job) -> None:
         try:
+            from isaac_runtime.outputset import OutputSet
             from isaac_runtime.run import RunOptions
 
+            OutputSet(job.out, "watch").check()  # a folder that is not isaac's: said now, as a scene error
             options = RunOptions(solver=self.options.solver, step=self.options.step, until=self.options.until,
                                  folder=job.folder)
             result = _simulate(job.scene, options, lambda sim, recorder: self._on_frame(job, recorder))
@@ -229,19 +258,23 @@ class Watch:
             self.say(f"result #{job.n} stopped: {job.cancel_reason}")
         except SceneError as error:  # found by the planner: as a load's error, but the old result is gone
             self.job_error(job, error)
-        except Exception as error:  # a bug in the tool: say so, keep watching
-            import traceback
+        except Exception as error:  # a bug in the tool: say so in one line, keep watching
+            self.job_crashed(job, error)
 
-            with self._print_lock:
-                traceback.print_exc(file=sys.stderr)
-            self.say(f"result #{job.n}: internal error ({type(error).__name__}: {error}); this is a bug in isaac. "
-                     f"Still watching.")
+    def job_crashed(self, job: Job, error: Exception) -> None:
+        line = internal_error(error)
+        job.crashed = True
+        job.state, job.message, job.failed = "error", f"result #{job.n}: internal error", line
+        if self.server:
+            self.server.set_status(state="error", message=f"{job.message}; the page keeps what it last showed",
+                                   diagnostic=line)
+        self.say(f"result #{job.n}: {line}; still watching (save to run it again)")
 
     def job_error(self, job: Job, error: SceneError) -> None:
         text = self.format_error(error, job.sources)
         with self._print_lock:
             print(text, file=sys.stderr, flush=True)
-        self.say(f"result #{job.n}: scene error found while planning; fix the scene and save")
+        self.say(f"result #{job.n}: error (above); fix it and save")
         job.state, job.message, job.failed = "error", f"result #{job.n}: scene error", text
         if self.server:
             self.server.set_status(state="error", diagnostic=text, message=job.message)
@@ -255,45 +288,40 @@ class Watch:
             job.first_frame = now  # planned; the stepping starts
         due = FIRST_RESULT if job.shown_at is None else PUBLISH_EVERY
         if now - (job.shown_at or job.first_frame) >= due:
-            self._show(job, recorder.arrays(), complete=False)
+            self._show(job, recorder.arrays())
 
-    def _show(self, job: Job, arrays: dict, complete: bool, audio: Path | None = None, failed: str = "") -> None:
-        """Put a result (all of it, or the frames so far) in viewer.html and on the live page."""
-        from isaac_runtime.viewer import viewer_data
-        from isaac_runtime.viewer.write import audio_url, render_html
-        from isaac_runtime.outputs import write_atomic
-
+    def _show(self, job: Job, arrays: dict) -> None:
+        """The frames so far: the output folder becomes this result's (its viewer.html), and the live page."""
         scene = job.scene
-        frames, t = len(arrays["time"]), (float(arrays["time"][-1]) if len(arrays["time"]) else scene.time.start)
-        note = "" if complete else f"running: {t - scene.time.start:.2f} s of {scene.time.end - scene.time.start:g} s so far"
-        data = viewer_data(scene, arrays, job.folder, note=note)
-        if audio is not None and audio.is_file():
-            data["audio"] = audio_url(audio, job.out)
-        data["result"] = job.n
-        write_atomic(job.out / "viewer.html", render_html(data).encode("utf-8"))
-        latency = time.time() - job.saved_at
-        state = "failed" if failed else ("complete" if complete else "running")
-        message = f"result #{job.n}: {note or state}"
-        job.state, job.message, job.failed = state, message, failed or None
-        if self.server:
-            if self.scene_error is not None:  # the last good result goes on running under the broken scene's error
-                self.server.publish(data, state="error", message=message, diagnostic=self.scene_error)
-            else:
-                self.server.publish(data, state=state, message=message, diagnostic=job.failed)
-        job.shown_at = time.perf_counter()
+        t = float(arrays["time"][-1]) if len(arrays["time"]) else scene.time.start
+        note = f"running: {t - scene.time.start:.2f} s of {scene.time.end - scene.time.start:g} s so far"
+        with _output_set(job.out) as folder:
+            data, viewer = self._viewer(job, arrays, folder.path, note)
+            folder.commit([viewer], scene=scene.name, result=job.n, run="running")
+        self._publish(job, data, "running", f"result #{job.n}: {note}")
         if job.first_latency is None:
-            job.first_latency = latency
-            if not complete:
-                self.say(f"result #{job.n}: first frames {latency:.2f} s after the save "
-                         f"({frames} frames, up to t = {t:.3g} s); the run goes on")
+            job.first_latency = time.time() - job.saved_at
+            self.say(f"result #{job.n}: first frames {job.first_latency:.2f} s after the save "
+                     f"({len(arrays['time'])} frames, up to t = {t:.3g} s); the run goes on")
 
     def _finish(self, job: Job, result) -> None:
-        written = _write_outputs(job.scene, result, job.out) + [job.out / "viewer.html"]
+        """The whole result: the files of `isaac run`, viewer.html and plots as one set; the live page."""
+        from isaac_runtime.run import set_info
+
         arrays = result.recorder.arrays()
-        audio = job.out / "audio.wav" if job.scene.sounds else None  # not a stale one from an earlier scene
         failed = str(result.error) if result.error is not None else ""
-        self._show(job, arrays, complete=True, audio=audio, failed=failed)
+        with _output_set(job.out) as folder:
+            written = _write_outputs(job.scene, result, folder.path)
+            audio = folder.path / "audio.wav" if result.audio is not None else None
+            data, viewer = self._viewer(job, arrays, folder.path, "", audio)
+            if self.options.plots:
+                written += self._plots(job, arrays, folder.path, audio)
+            folder.commit(written + [viewer], result=job.n, **set_info(job.scene, result))
+        self._publish(job, data, "failed" if failed else "complete",
+                      f"result #{job.n}: {'failed' if failed else 'complete'}", failed)
         latency = time.time() - job.saved_at
+        if job.first_latency is None:
+            job.first_latency = latency
         report = result.report
         self.say_warnings(report.get("warnings", []), job.sources)  # the plan's and the run's
         if failed:
@@ -303,95 +331,44 @@ class Watch:
             self.say(f"result #{job.n}: complete {latency:.2f} s after the save (first frames after "
                      f"{job.first_latency:.2f} s); {report['frames']} frames, max constraint error "
                      f"{report['max_constraint_error']:.2e}; outputs in {job.out}/")
-        if self.options.plots:
-            written += self._plots(job, arrays, audio)
-        _clear_stale(job.out, written)
 
-    def _plots(self, job: Job, arrays: dict, audio: Path) -> list:
+    def _viewer(self, job: Job, arrays: dict, folder: Path, note: str, audio: Path | None = None) -> tuple:
+        """(viewer data, the viewer.html written into folder) of a result."""
+        from isaac_runtime.outputs import write_atomic
+        from isaac_runtime.viewer import viewer_data
+        from isaac_runtime.viewer.write import audio_url, render_html
+
+        data = viewer_data(job.scene, arrays, job.folder, note=note)
+        if audio is not None and audio.is_file():
+            data["audio"] = audio_url(audio, folder)
+        data["result"] = job.n
+        write_atomic(folder / "viewer.html", render_html(data).encode("utf-8"))
+        return data, folder / "viewer.html"
+
+    def _publish(self, job: Job, data: dict, state: str, message: str, failed: str = "") -> None:
+        job.state, job.message, job.failed = state, message, failed or None
+        if self.server:
+            if self.scene_error is not None:  # the last good result goes on running under the broken scene's error
+                self.server.publish(data, state="error", message=message, diagnostic=self.scene_error)
+            else:
+                self.server.publish(data, state=state, message=message, diagnostic=job.failed)
+        job.shown_at = time.perf_counter()
+
+    def _plots(self, job: Job, arrays: dict, folder: Path, audio: Path | None) -> list:
         try:
             from isaac_runtime.plots import write_plots
 
-            return write_plots(job.out / "plots", arrays, audio if audio and audio.is_file() else None,
+            return write_plots(folder / "plots", arrays, audio if audio and audio.is_file() else None,
                                title=job.scene.name)
         except ImportError as error:  # matplotlib is the optional `plots` extra
             self.say(f"plots skipped: {error} (pip install 'isaac[plots]')")
             return []
-
-    # -- files ----------------------------------------------------------------------------------------------
 
     # -- output ---------------------------------------------------------------------------------------------
 
     def say(self, message: str) -> None:
         with self._print_lock:
             print(f"[{time.strftime('%H:%M:%S')}] {message}", flush=True)
-
-
-class FileWatcher:
-    """Changed paths, from a background thread: OS notifications through watchfiles, or polling (--poll, or
-    without watchfiles). It watches folders, as `folders()` names them at the time, and follows when they change."""
-
-    def __init__(self, folders, poll: bool, say):
-        self.folders = folders
-        self.poll = poll
-        self.say = say
-        self._queue: queue.Queue = queue.Queue()
-        self._stop = threading.Event()
-        self._ready = threading.Event()
-
-    def start(self) -> None:
-        try:
-            import watchfiles
-        except ImportError:
-            watchfiles = None
-            self.say(f"(watchfiles is not installed: polling every {POLL_INTERVAL} s; pip install watchfiles)")
-        target = self._polling if watchfiles is None or self.poll else self._notified
-        threading.Thread(target=target, args=(watchfiles,), name="isaac-files", daemon=True).start()
-        self._ready.wait(5.0)
-
-    def stop(self) -> None:
-        self._stop.set()
-
-    def next_changes(self) -> set:
-        """The next set of changed paths (resolved); blocks, but a Ctrl-C gets through."""
-        while True:
-            try:
-                return self._queue.get(timeout=0.2)
-            except queue.Empty:
-                continue
-
-    def _notified(self, watchfiles) -> None:
-        while not self._stop.is_set():
-            folders = self.folders()
-            # step: report once nothing more changed for 50 ms (an editor's write-and-rename is one save);
-            # the empty reports every 200 ms say the watch is up, and let it follow new folders
-            for changes in watchfiles.watch(*folders, step=50, debounce=1600, stop_event=self._stop,
-                                            yield_on_timeout=True, rust_timeout=200, raise_interrupt=False):
-                self._ready.set()
-                if changes:
-                    self._queue.put({Path(p).resolve() for _, p in changes})
-                if self.folders() != folders:
-                    break  # a new include in another folder: watch that folder too
-
-    def _polling(self, watchfiles=None) -> None:
-        seen = self._stamps()
-        self._ready.set()
-        while not self._stop.wait(POLL_INTERVAL):
-            now = self._stamps()
-            changed = {p for p in set(now) | set(seen) if now.get(p) != seen.get(p)}
-            seen = now
-            if changed:
-                self._queue.put(changed)
-
-    def _stamps(self) -> dict:
-        stamps = {}
-        for folder in self.folders():
-            for path in folder.iterdir():
-                try:
-                    st = path.stat()
-                except OSError:
-                    continue
-                stamps[path.resolve()] = (st.st_mtime_ns, st.st_size, st.st_ino)
-        return stamps
 
 
 def _simulate(scene, options, on_frame):
@@ -408,11 +385,11 @@ def _write_outputs(scene, result, out: Path) -> list:
     return run.write_outputs(scene, result, out)
 
 
-def _clear_stale(out: Path, written: list) -> None:
-    """What an earlier run wrote into out and this one did not (a sound the scene no longer has)."""
-    from isaac_runtime.outputs import clear_stale
+def _output_set(out: Path):
+    """A new set of files for the output folder (runtime/outputset.py)."""
+    from isaac_runtime.outputset import OutputSet
 
-    clear_stale(out, written)
+    return OutputSet(out, "watch")
 
 
 def _warm_up() -> None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import os
 import secrets
 from pathlib import Path
@@ -27,10 +28,14 @@ class Recorder:
         self.angular_velocity = np.full((T, B, 3), np.nan)
         self.constraint_error = np.full(T, np.nan)
         self.energy = np.full(T, np.nan)
+        # the row of that largest constraint error at each frame, -1 when not known (not in trajectory.npz; the
+        # check of runtime/checks.py names the constraints that keep an error from it)
+        self.worst = np.full(T, -1, np.int64)
         self.count = 0
 
-    def record(self, state, constraint_error: float, energy: float) -> None:
+    def record(self, state, constraint_error: float, energy: float, worst: int = -1) -> None:
         k = self.count
+        self.worst[k] = worst
         self.position[k] = state.x
         self.orientation[k] = state.q
         self.linear_velocity[k] = state.v
@@ -39,9 +44,10 @@ class Recorder:
         self.energy[k] = energy
         self.count += 1
 
-    def record_packed(self, y: np.ndarray, constraint_error: float, energy: float) -> None:
+    def record_packed(self, y: np.ndarray, constraint_error: float, energy: float, worst: int = -1) -> None:
         """One frame from the packed state y (n,13) of the kernels: rows [x q v w]."""
         k = self.count
+        self.worst[k] = worst
         self.position[k], self.orientation[k] = y[:, 0:3], y[:, 3:7]
         self.linear_velocity[k], self.angular_velocity[k] = y[:, 7:10], y[:, 10:13]
         self.constraint_error[k] = constraint_error
@@ -84,29 +90,10 @@ def _create_beside(path: Path) -> tuple:
             continue
 
 
-# the files `isaac run` writes into its output folder, and so the ones it may clear there (nothing else)
+# the files `isaac run` writes into its output folder (runtime/outputset.py: the names that are isaac's in a
+# folder written before manifests)
 OWNED_FILES = ("trajectory.npz", "events.json", "ir.json", "report.json", "audio.wav", "viewer.html")
 OWNED_PLOTS = ("energy.png", "constraint_error.png", "trajectories.png", "spectrogram.png")
-
-
-def owned_paths(out: Path) -> list:
-    """Every path a run may write into out: its files, and its plots in out/plots/."""
-    return [out / name for name in OWNED_FILES] + [out / "plots" / name for name in OWNED_PLOTS]
-
-
-def clear_stale(out: Path, written) -> list:
-    """Remove what an earlier run wrote into out and this run did not (a sound, a viewer, plots), so the folder
-    holds one run's files; files of anyone else are left alone. Returns the removed paths."""
-    keep = {Path(p).resolve() for p in written}
-    removed = []
-    for path in owned_paths(Path(out)):
-        if path.is_file() and path.resolve() not in keep:
-            path.unlink()
-            removed.append(path)
-    plots = Path(out) / "plots"
-    if plots.is_dir() and not any(plots.iterdir()):
-        plots.rmdir()
-    return removed
 
 
 def write_npz(path: Path, arrays: dict) -> None:
@@ -116,12 +103,25 @@ def write_npz(path: Path, arrays: dict) -> None:
 
 
 def write_json(path: Path, data) -> None:
-    write_atomic(path, (json.dumps(data, indent=1, sort_keys=True, allow_nan=False, default=_plain) + "\n").encode())
+    """Strict JSON (any reader loads it): a figure that is not finite (a blow-up's NaN or infinity) is null."""
+    text = json.dumps(finite_or_null(data), indent=1, sort_keys=True, allow_nan=False)
+    write_atomic(path, (text + "\n").encode())
 
 
-def _plain(value):
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
+def finite_or_null(value):
+    """value with numpy scalars and arrays made plain, and every NaN or infinity made None."""
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, np.integer):
+        return int(value)
     if isinstance(value, np.ndarray):
-        return value.tolist()
+        return finite_or_null(value.tolist())
+    if isinstance(value, dict):
+        return {key: finite_or_null(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_null(item) for item in value]
+    if value is None or isinstance(value, (str, int)):
+        return value
     raise TypeError(f"cannot write {type(value).__name__} as JSON")

@@ -13,6 +13,7 @@ import numpy as np
 from isaac_lang import expr as E
 from isaac_lang import ir
 
+from .budgets import check_budgets
 from .constraints.plan import ConstraintPlan, compile_constraints
 from .forces import ForcePlan, compile_forces
 from .kinematics import KinematicPaths, compile_kinematics
@@ -112,6 +113,7 @@ def compile_plan(scene: ir.Scene, options: PlanOptions | None = None) -> Plan:
     solver = _choose_solver(scene, options)
     step, reason = _choose_step(scene, solver, options)
     end = min(scene.time.end, options.until) if options.until is not None else scene.time.end
+    check_budgets(scene, solver, step, end, reason)  # what the plan would ask for, before it allocates anything
     bodies = _body_arrays(scene)
     kinematics = compile_kinematics(scene)
     x0, q0 = bodies["x0"], bodies["q0"]

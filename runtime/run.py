@@ -1,9 +1,10 @@
 """`isaac run`: plan, simulate frame by frame, write the outputs, hold the run to its tolerances.
 
-The driver (`run_scene`) reads as the list of stages: simulate (plan, extras, step loop, report), write the files
-of ARCHITECTURE.md's contract (and the viewer, the plots), clear what an earlier run left that this one did not
-write, say what happened (warnings, errors, the summary) and return the exit code: 0, 2 for a blow-up (or a
-warning under --strict), 3 for a finished run that broke a tolerance (--max-constraint-error).
+The driver (`run_scene`) reads as the list of stages: check the output folder is isaac's, simulate (plan, extras,
+step loop, report), write the files of ARCHITECTURE.md's contract (and the viewer, the plots) as one set that
+replaces the previous run's whole (runtime/outputset.py), say what happened (warnings, errors, the summary) and
+return the exit code: 0, 2 for a blow-up (or a warning under --strict), 3 for a finished run that broke a
+tolerance (--max-constraint-error).
 """
 from __future__ import annotations
 
@@ -21,7 +22,8 @@ from isaac_lang.diagnostics import warning_diagnostic
 
 from . import checks
 from .extras import check_extras
-from .outputs import Recorder, clear_stale, write_json, write_npz
+from .outputs import Recorder, write_json, write_npz
+from .outputset import OutputSet
 from .plan import PlanOptions, compile_plan
 from .simulation import NumericalError, Simulation
 
@@ -79,8 +81,23 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     energy0 = float(recorder.energy[0]) if recorder.count else sim.energy()  # the first frame's: the start
     report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
     report["warnings"] = list(options.scene_warnings) + report["warnings"]
-    report["checks"] = {"max_constraint_error": checks.constraint_check(report, options.max_constraint_error)}
+    conflict = _conflicts(sim, recorder, options.max_constraint_error) if error is None else None
+    if conflict is not None:
+        report["warnings"].append(checks.conflict_warning(conflict))
+    report["checks"] = {"max_constraint_error": checks.constraint_check(report, options.max_constraint_error,
+                                                                        conflict)}
     return RunResult(sim, recorder, report, error, audio)
+
+
+def _conflicts(sim: Simulation, recorder: Recorder, limit: float | None) -> dict | None:
+    """The constraints that cannot all hold (runtime/checks.py), from the frames and the end of the run."""
+    plan = sim.plan
+    if plan.constraints is None:
+        return None
+    residuals, _ = sim.constraint_residuals()
+    windows = checks.settling_windows(plan.scene, plan)
+    return checks.conflicts(plan, recorder, residuals, windows, limit,
+                            lambda rows: sim.joint_rows(np.asarray(rows, np.int64), sim.state.t)[0])
 
 
 def write_outputs(scene: ir.Scene, result: RunResult, out: Path) -> list:
@@ -96,12 +113,17 @@ def write_outputs(scene: ir.Scene, result: RunResult, out: Path) -> list:
     return written + [out / "report.json"]
 
 
-def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path | None = None) -> int:
-    """`isaac run` after the scene is loaded: the stages, then the exit code (module docstring)."""
+def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path | None = None, more=None) -> int:
+    """`isaac run` after the scene is loaded: the stages, then the exit code (module docstring). more(folder,
+    result) -> paths: files another command (isaac export) adds to the run's set, written into folder."""
+    outputs = OutputSet(out, "run")
+    outputs.check()  # a folder that is not isaac's stops the run now, not after it
     result = simulate(scene, options)
-    written = write_outputs(scene, result, out)
-    written += write_extras(scene, result, out, options)
-    clear_stale(out, written)
+    with outputs:
+        written = write_outputs(scene, result, outputs.path) + write_extras(scene, result, outputs.path, options)
+        if more is not None:
+            written += more(outputs.path, result)
+        written = outputs.commit(written, **set_info(scene, result))
     where = f"{scene_path}" if scene_path else scene.name
     warnings = _say_warnings(where, result.report["warnings"], options)
     if result.error is not None:
@@ -114,6 +136,11 @@ def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path 
     if _broken_tolerance(where, result.report):
         return EXIT_TOLERANCE
     return EXIT_SCENE if warnings and options.strict else EXIT_OK
+
+
+def set_info(scene: ir.Scene, result: RunResult) -> dict:
+    """What the output folder's manifest says of the run besides its files."""
+    return {"scene": scene.name, "run": "blow-up" if result.error is not None else "complete"}
 
 
 def write_extras(scene: ir.Scene, result: RunResult, out: Path, options: RunOptions) -> list:
@@ -178,9 +205,10 @@ def _broken_tolerance(where: str, report: dict) -> bool:
     check = report["checks"]["max_constraint_error"]
     if check["ok"]:
         return False
+    named = f" (constraints {', '.join(f'`{n}`' for n in check['constraints'])})" if check.get("constraints") else ""
     _say_error(where, f"the constraint error stays at {check['value']:.3g} (m or rad) once switched-on constraints "
                       f"have settled (largest at t = {check['time']:.6g} s), above --max-constraint-error "
-                      f"{check['limit']:g}",
+                      f"{check['limit']:g}{named}",
                "constraints that cannot all hold (two nails that disagree, a body tied to two places) keep their "
                "error: check the anchor points, or raise the limit with --max-constraint-error")
     return True
@@ -193,7 +221,7 @@ def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, er
     scale = _energy_scale(plan)
     warnings = list(plan.warnings)
     if sim.rank_deficient():
-        warnings.append("redundant constraints: J M^-1 J^T was singular; solved in the least-squares sense")
+        warnings.append(checks.redundant_warning(plan, sim.constraint_residuals()[1]))
     stages = plan.stages()
     return {
         "scene": plan.scene.name, "solver": plan.solver, "integrator": plan.integrator, "step": plan.step,

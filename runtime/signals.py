@@ -230,6 +230,14 @@ def microphone() -> Microphone | None:
     return _MICROPHONE
 
 
+def use_microphone(mic) -> None:
+    """Make `mic` the microphone that mic() reads (any object with level() and close(): `isaac live`'s breath,
+    isaac_runtime.live.breath). One that also has stand_in(attack, release, normalize) stands in for every
+    recording a wind follows: envelope("file", ...) then reads it instead of the file."""
+    global _MICROPHONE
+    _MICROPHONE = mic
+
+
 # ---- the functions the expression evaluator calls ------------------------------------------------------------
 
 def signal_functions(envelopes: dict, mic: Microphone | None) -> dict:
@@ -238,7 +246,12 @@ def signal_functions(envelopes: dict, mic: Microphone | None) -> dict:
     envelopes: (file, attack, release, normalize) -> Envelope, loaded beforehand (`preload`), so that a missing
     file is an error when the plan is made, not in the middle of a run. Without a microphone, mic() is 0."""
 
+    stand_in = getattr(mic, "stand_in", None)
+
     def envelope(env, name, attack=DEFAULT_ATTACK, release=DEFAULT_RELEASE, start=0.0, normalize=1.0):
+        if stand_in is not None:  # a live breath in place of the recording (isaac live --mic)
+            level = stand_in(attack, release, normalize)
+            return level if np.ndim(env["t"]) == 0 else np.full(np.shape(env["t"]), level)
         return envelopes[envelope_key(name, attack, release, normalize)].at(np.asarray(env["t"], float) - start)
 
     def microphone_level(env, gain=1.0):

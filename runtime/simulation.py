@@ -24,6 +24,7 @@ from .core.entries import row_errors, state_constraint_error, state_energy
 from .core.jit import CompileNotice
 from .core.record import RUNAWAY_CONSTRAINT_ERROR, Frames
 from .dynamics.integrate import CONTACT, DONE, RUNAWAY_BODY
+from .kinematics import on_path, window_switches
 from .plan import Plan, PlanOptions, compile_plan
 
 # compatibility name for callers of the step loop
@@ -35,9 +36,11 @@ ON_FRAME_STEPS = 2000
 class NumericalError(Exception):
     """The simulation became meaningless: says when (time and step) and what (body or constraint)."""
 
-    def __init__(self, time: float, step: int, culprit: str, detail: str):
+    def __init__(self, time: float, step: int, culprit: str, detail: str, source: str | None = None):
         self.time, self.step, self.culprit, self.detail = time, step, culprit, detail
-        super().__init__(f"numerical blow-up at t = {time:.6g} s (step {step}): {culprit}: {detail}")
+        self.source = source  # "file:line:col" of the culprit's declaration, when known
+        declared = f" (declared at {source})" if source else ""
+        super().__init__(f"numerical blow-up at t = {time:.6g} s (step {step}): {culprit}{declared}: {detail}")
 
 
 @dataclass
@@ -83,7 +86,11 @@ class Simulation:
         switches = list(plan.constraints.switch_times()) if plan.constraints else []
         if plan.collisions is not None:
             switches += plan.collisions.window_switches()
+        switches += window_switches(plan.kinematics)
         self._switches = np.unique(np.array(switches, float))
+        # a body with `kinematic A .. B`: the mass properties it has off its path (the plan's are changed in place
+        # while it is on it, for the stages that read them)
+        self._off_path = (plan.dynamic.copy(), plan.inv_mass.copy(), plan.inv_inertia_body.copy())
         self._act = None  # the Active rows of the epoch the state is in
         self._frame_now = False  # a frame is due at the state's time (recorded before the next step)
         self._epoch_in = ()  # the epoch (and windowed exclusions) the collision stage was told of
@@ -93,6 +100,7 @@ class Simulation:
         self.collider = plan.collisions.start(self) if plan.collisions is not None else None
         # observers called after every step, e.g. the audio stage recording motion signals
         self.observers: list = []
+        self._follow_paths()
         self._place_kinematic()
         if self.collider is not None:
             self._active()
@@ -156,6 +164,17 @@ class Simulation:
         """Whether a solve found redundant constraints (J M^-1 J^T singular) so far."""
         return bool(self.compiled.scratch.counters[D.COUNTER_RANK])
 
+    def constraint_residuals(self) -> tuple:
+        """({global row: |C|} of the active position rows, [rows the last solve dropped as dependent]) at the
+        current state (runtime/checks.py names the constraints that cannot all hold from them)."""
+        if self.plan.constraints is None:
+            return {}, []
+        self.constraint_errors()  # evaluates C of every active row into the scratch
+        act, c = self._active(), self.compiled
+        rows = act.rows.tolist()
+        residuals = {r: abs(float(c.scratch.C[r])) for r in rows if not c.model.constraints.velocity_only[r]}
+        return residuals, [r for i, r in enumerate(rows) if c.scratch.dropped[i]]
+
     # -- live inputs --------------------------------------------------------------------------------------
 
     def set_pose(self, name: str, position, orientation=(1.0, 0.0, 0.0, 0.0)) -> None:
@@ -170,6 +189,27 @@ class Simulation:
 
     def release_pose(self, name: str) -> None:
         self.plan.kinematics.overrides.pop(self.body(name), None)
+
+    def pull(self, name: str, point, target, stiffness: float, damping: float) -> None:
+        """Pull a point of a body (its frame) toward a world point with a spring of rest length 0, until
+        `release_pull` (a mouse dragging the body, as MuJoCo's perturbation): one more row of the compiled springs
+        after the scene's, the world at its far end; a new target rewrites that row, read at the next kernel call."""
+        springs, row = self.compiled.model.springs, self._scene_springs()
+        if len(springs.stiffness) == row:
+            springs = M.Springs(*(np.concatenate((a, np.zeros((1,) + a.shape[1:], a.dtype))) for a in springs))
+            self.compiled.model = self.compiled.model._replace(springs=springs)
+        springs.body[row] = (self.body(name), -1)
+        springs.point[row, 0], springs.point[row, 1] = point, target
+        springs.stiffness[row], springs.rest[row], springs.damping[row] = stiffness, 0.0, damping
+
+    def release_pull(self) -> None:
+        springs, row = self.compiled.model.springs, self._scene_springs()
+        if len(springs.stiffness) > row:
+            self.compiled.model = self.compiled.model._replace(springs=M.Springs(*(a[:row] for a in springs)))
+
+    def _scene_springs(self) -> int:
+        springs = self.plan.forces.springs
+        return 0 if springs is None else len(springs.stiffness)
 
     def set_parameter(self, name: str, value: str) -> None:
         """Change a scene parameter (a `let`) mid-run: the scene is re-lowered and re-planned, and every body
@@ -335,7 +375,8 @@ class Simulation:
             if frame_step[f] > max(recorded, 0):
                 break
             if sink.recorder is not None:
-                sink.recorder.record_packed(frames.y[f, :n], float(frames.error[f]), float(frames.energy[f]))
+                sink.recorder.record_packed(frames.y[f, :n], float(frames.error[f]), float(frames.energy[f]),
+                                            int(frames.worst[f]))
             if self.collider is not None:
                 self.collider.frame_events(float(sink.times[sink.next]), frames.contact[f])
             sink.next += 1
@@ -353,7 +394,28 @@ class Simulation:
 
     # -- epochs and failures ----------------------------------------------------------------------------------
 
+    def _follow_paths(self) -> None:
+        """Bodies with a `kinematic A .. B` window onto their path when it begins (placed on it: the path's pose
+        and velocities replace the state), off it when it ends (dynamic from the path's state there)."""
+        paths = self.plan.kinematics
+        if paths is None or np.isinf(paths.windows).all():
+            return
+        on = on_path(paths, self.state.t + 1e-12)
+        windowed = np.isfinite(paths.windows).any(axis=1)
+        changed = np.flatnonzero(windowed & (on != self.compiled.model.kinematic.on))
+        if not len(changed):
+            return
+        dynamic, inv_mass, inv_inertia = self._off_path
+        for k in changed.tolist():
+            self.compiled.set_on_path(k, bool(on[k]))
+            b = int(paths.index[k])
+            self.plan.dynamic[b] = dynamic[b] and not on[k]
+            self.plan.inv_mass[b] = 0.0 if on[k] else inv_mass[b]
+            self.plan.inv_inertia_body[b] = 0.0 if on[k] else inv_inertia[b]
+        self._place_kinematic()
+
     def _active(self):
+        self._follow_paths()
         c = self.plan.constraints
         epoch = c.epoch_at(self.state.t + 1e-12) if c is not None else None
         if self.collider is not None:
@@ -376,7 +438,9 @@ class Simulation:
         kin = self.compiled.model.kinematic
         if len(kin.body):
             table = self.compiled.table.evaluate(self.state.t, 0.0, 1)
-            for b, c in zip(kin.body.tolist(), kin.column.tolist()):
+            for b, c, on in zip(kin.body.tolist(), kin.column.tolist(), kin.on.tolist()):
+                if not on:
+                    continue
                 y = self.state.y[b]
                 y[0:3], y[7:10] = table[0, c + M.KIN_X:c + M.KIN_X + 3], table[0, c + M.KIN_V:c + M.KIN_V + 3]
                 y[3:7], y[10:13] = table[0, c + M.KIN_Q:c + M.KIN_Q + 4], table[0, c + M.KIN_W:c + M.KIN_W + 3]
@@ -388,11 +452,13 @@ class Simulation:
             y = s.y[which]
             detail = ("its velocity is no longer finite" if not np.all(np.isfinite(y))
                       else f"its speed passed {RUNAWAY_SPEED:g}")
-            return NumericalError(s.t, s.steps, f"body `{self.plan.names[which]}`", detail)
+            return NumericalError(s.t, s.steps, f"body `{self.plan.names[which]}`", detail,
+                                  self.plan.scene.bodies[which].source)
         error, _ = self.constraint_errors()
         return self._constraint_failure(which, error)
 
     def _constraint_failure(self, row: int, error: float) -> NumericalError:
         name = self.plan.constraints.names[self.plan.constraints.row_constraint[row]] if row >= 0 else "?"
-        return NumericalError(self.state.t, self.state.steps, f"constraint `{name}`",
+        source = next((c.source for c in self.plan.scene.constraints if c.name == name), None)
+        return NumericalError(self.state.t, self.state.steps, f"constraint `{name}`", source=source, detail=
                               f"its error grew to {error:.3g} (m or rad)")

@@ -16,9 +16,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from isaac_lang import expr as E
 from isaac_lang.diagnostics import Diagnostic, SceneError, SourcePos, did_you_mean
 
+from ..rotation import quat_to_matrix
 from . import modal as M
 from .excitation import body_contact_properties
 from .impact import BodyBank, Impact, Modal, Pulse, ringing_of
@@ -158,8 +161,7 @@ class SoundCompiler:
     def _fn_modal(self, args, strength):
         names = args.bodies(0, lambda: self._hit_body_names(modal=True))
         options = args.mode_options()
-        banks = [self._bank(name, options, required=bool(args.positional)) for name in names]
-        banks = [b for b in banks if b is not None]
+        banks = [b for name in names for b in self._banks(name, options, required=bool(args.positional))]
         if not banks:
             raise self.fail("modal(): none of the bodies has modes", "give a body `modes ((f, decay, gain), ...)` "
                             "or a material with `young` and `density`")
@@ -169,9 +171,10 @@ class SoundCompiler:
     def _fn_impact(self, args, strength):
         names = args.bodies(0, lambda: self._hit_body_names(modal=False), many=True)
         options = args.mode_options()
-        banks = [b for b in (self._bank(name, options, required=False) for name in names) if b is not None]
-        ringing = {name: ringing_of(self._material(name)) if any(b.body == name for b in banks) else 0.0
-                   for name in names}
+        banks = [b for name in names for b in self._banks(name, options, required=False)]
+        ringing = {(name, None): 0.0 for name in names}
+        for b in banks:  # the ringing of each body with modes, or of each part of a compound body
+            ringing[(b.body, b.part)] = ringing_of(self._material(b.body, b.part))
         seed = (self.scene.seed, self.sound.name, self.counter)
         return Impact(banks, ringing, strength, seed, self.fs, args.number("tau", None))
 
@@ -179,10 +182,29 @@ class SoundCompiler:
         duration = args.number(0, None) if args.positional else args.number("duration", None)
         return Pulse(strength, duration)
 
-    def _bank(self, name: str, options: dict, required: bool) -> BodyBank | None:
+    def _banks(self, name: str, options: dict, required: bool) -> list:
+        """The banks of a body: its own modes; a compound body without a `modes` table of its own rings part
+        by part, each part with the modes of its shape and material (those that have some)."""
         body = self.bodies[name]
+        if body.shape.type != "compound" or body.modes:
+            bank = self._bank(name, body, self._material(name), options, required)
+            return [bank] if bank is not None else []
+        banks = []
+        for part in body.shape.parts:
+            stand_in = _PartBody(f"{name}.{part.name}", part.shape, part.modes, part.mass, body.motion)
+            pose = (np.asarray(body.shape.offset, float) + np.asarray(part.position, float),
+                    quat_to_matrix(np.asarray(part.orientation, float)))
+            bank = self._bank(stand_in.name, stand_in, self._material(name, part.name), options, False)
+            if bank is not None:
+                banks.append(BodyBank(name, bank.modes, part.name, pose))
+        if not banks and required:
+            raise self.fail(f"body `{name}`: none of its parts has modes", "give a part `modes ((f, decay, gain), "
+                            "...)` or a material with `young` and `density`")
+        return banks
+
+    def _bank(self, name: str, body, material, options: dict, required: bool) -> BodyBank | None:
         try:
-            modes = M.body_modes(body, self._material(name), **options["model"]).audible(self.fs, options["count"])
+            modes = M.body_modes(body, material, **options["model"]).audible(self.fs, options["count"])
         except M.ModalError as error:
             if required:
                 raise self.fail(str(error)) from None
@@ -195,9 +217,12 @@ class SoundCompiler:
         self.modes[name] = modes
         return BodyBank(name, modes)
 
-    def _material(self, body_name: str):
+    def _material(self, body_name: str, part: str | None = None):
         body = self.bodies[body_name]
-        return self.materials.get(body.material) if body.material else None
+        name = body.material
+        if part is not None:
+            name = next((p.material for p in body.shape.parts if p.name == part), name)
+        return self.materials.get(name) if name else None
 
     def _hit_body_names(self, modal: bool) -> list:
         """The bodies a modal() or impact() without names rings: the two of its trigger, or (a trigger naming
@@ -249,7 +274,7 @@ class SoundCompiler:
             profile = SurfaceProfile.fractal(beta, dx, self._seed())
         roughness = max((m.roughness for m in (self._material(n) for n in pair) if m is not None), default=1e-5)
         options = args.mode_options()
-        banks = [b for b in (self._bank(n, options, required=False) for n in pair) if b is not None]
+        banks = [b for n in pair for b in self._banks(n, options, required=False)]
         return Scrape(pair, banks, profile, max_speed, rolling, roughness, self.fs)
 
     def _fn_roll(self, args, strength):
@@ -479,5 +504,23 @@ def _asset(scene, name: str, folder=None) -> str:
 
 
 def contact_properties(scene) -> dict:
+    """body -> what excitation.contact_duration needs; and (body, part) -> the same of each part of a compound
+    body (its curvature and material; the whole body's mass)."""
     materials = {m.name: m for m in scene.materials}
-    return {b.name: body_contact_properties(b, materials.get(b.material)) for b in scene.bodies}
+    props = {b.name: body_contact_properties(b, materials.get(b.material)) for b in scene.bodies}
+    for b in scene.bodies:
+        for part in b.shape.parts:
+            stand_in = _PartBody(b.name, part.shape, part.modes, b.mass, b.motion)
+            props[(b.name, part.name)] = body_contact_properties(stand_in, materials.get(part.material))
+    return props
+
+
+@dataclass(frozen=True)
+class _PartBody:
+    """A part of a compound body as the modal models and the contact duration read a body."""
+
+    name: str
+    shape: object
+    modes: tuple | None
+    mass: float | None
+    motion: str

@@ -39,31 +39,46 @@ BURST_Q = 0.8
 
 
 class BodyBank:
-    """A body's modes, as the compiler hands them to an exciter."""
+    """A body's modes, as the compiler hands them to an exciter; or one part's of a compound body (the
+    dissertation's heterogeneous object: each part rings with its own shape and material): `part` its name, `pose`
+    (where its origin sits in the body frame (3,), its axes R (3,3)), so that a hit's body-frame point can be read
+    in the part's frame."""
 
-    def __init__(self, body: str, modes):
-        self.body, self.modes = body, modes
+    def __init__(self, body: str, modes, part: str | None = None, pose: tuple | None = None):
+        self.body, self.modes, self.part, self.pose = body, modes, part, pose
+
+    def excitation(self, local_point) -> np.ndarray:
+        if self.pose is not None and local_point is not None:
+            origin, R = self.pose
+            local_point = R.T @ (np.asarray(local_point, float) - origin)  # p_part = R^T (p_body - o)
+        return self.modes.excitation(local_point)
 
 
 class Banks:
-    """The resonator banks of an exciter's bodies as one ResonatorBank, their modes side by side (each body's
-    tested for silence on its own), with the parts of pulses that run past the end of a block."""
+    """The resonator banks of an exciter's bodies (or their parts) as one ResonatorBank, their modes side by side
+    (each bank tested for silence on its own), with the parts of pulses that run past the end of a block."""
 
     def __init__(self, bodies: list, fs: float):
-        self.bodies = [b.body for b in bodies]
-        self.modes = {b.body: b.modes for b in bodies}
+        self.bodies = list(dict.fromkeys(b.body for b in bodies))
+        self.banks = bodies
         sizes = [len(b.modes) for b in bodies]
         edges = np.cumsum([0] + sizes)
-        self.slices = {b.body: slice(lo, hi) for b, lo, hi in zip(bodies, edges[:-1], edges[1:])}
+        self.slices = [slice(lo, hi) for lo, hi in zip(edges[:-1], edges[1:])]
         freq, decay, gain = (np.concatenate([getattr(b.modes, name) for b in bodies] or [np.zeros(0)])
                              for name in ("freq", "decay", "gain"))
         self.bank = ResonatorBank(freq, decay, gain, fs, FRAME, groups=sizes or None)
         self.pending = []  # (gains, samples still to feed from the start of the next block)
 
-    def gains(self, body: str, local_point) -> np.ndarray:
-        """(M,) the input gains of a hit on `body` at a body-frame point: its modes' excitation, 0 elsewhere."""
+    def has(self, body: str) -> bool:
+        return body in self.bodies
+
+    def gains(self, body: str, local_point, part: str | None = None) -> np.ndarray:
+        """(M,) the input gains of a hit on `body` at a body-frame point: its modes' excitation, 0 elsewhere; a
+        compound body's hit rings the part struck (every part when the hit names none)."""
         out = np.zeros(self.bank.size)
-        out[self.slices[body]] = self.modes[body].excitation(local_point)
+        for bank, where in zip(self.banks, self.slices):
+            if bank.body == body and (bank.part is None or part is None or bank.part == part):
+                out[where] = bank.excitation(local_point)
         return out
 
     def render(self, start: int, n: int, inputs: list) -> np.ndarray:
@@ -134,7 +149,7 @@ class Modal(Exciter):
             x = self.pulse(self.tau or hit.tau, ctx.fs)
             touched = [body for body in self.banks.bodies if body in hit.bodies] or self.banks.bodies
             for body in touched:
-                inputs.append((s * self.banks.gains(body, hit.local.get(body)), k0, x))
+                inputs.append((s * self.banks.gains(body, hit.local.get(body), hit.parts.get(body)), k0, x))
         if self.drive is not None:
             x = as_block(self.drive.render(ctx), ctx.n)
             x = x.mean(axis=0) if x.ndim > 1 else x
@@ -144,7 +159,7 @@ class Modal(Exciter):
 
 class Impact(Exciter):
     """impact(a, b): the modal banks of the bodies hit, plus a click and a noise burst set by the materials.
-    `ringing`: body -> rho in [0, 1] (0 for a body without modes)."""
+    `ringing`: (body, part or None) -> rho in [0, 1] (0 for a body without modes): of the part struck."""
 
     def __init__(self, banks: list, ringing: dict, strength, seed: tuple, fs: float, tau: float | None = None):
         super().__init__(strength)
@@ -159,11 +174,19 @@ class Impact(Exciter):
                 continue
             tau = self.tau or hit.tau
             for name in hit.bodies:
-                if name in self.banks.slices:
-                    inputs.append((s * self.banks.gains(name, hit.local.get(name)), k0, self.pulse(tau, ctx.fs)))
-            rho = max((self.ringing.get(name, 0.0) for name in hit.bodies), default=0.0)
+                if self.banks.has(name):
+                    inputs.append((s * self.banks.gains(name, hit.local.get(name), hit.parts.get(name)), k0,
+                                   self.pulse(tau, ctx.fs)))
+            rho = max((self._ringing(name, hit.parts.get(name)) for name in hit.bodies), default=0.0)
             self._add_signal(out, k0, s * self._contact_sound(tau, rho, ctx.fs, hit))
         return out + self.banks.render(ctx.start, ctx.n, inputs)
+
+    def _ringing(self, body: str, part: str | None) -> float:
+        """rho of the part struck (of the body; a compound hit at no part: its most ringing part)."""
+        if (body, part) in self.ringing:
+            return self.ringing[(body, part)]
+        return max((rho for (b, p), rho in self.ringing.items() if b == body and (part is None or p is None)),
+                   default=0.0)
 
     def _contact_sound(self, tau: float, rho: float, fs: float, hit) -> np.ndarray:
         """The click (force pulse, unit peak) and the noise burst of one contact, as one finite signal."""

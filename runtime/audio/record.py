@@ -112,6 +112,7 @@ class Hit:
     local: dict  # body -> (3,) contact point in the body's frame
     tau: float  # s, contact duration
     index: int  # position in events.json
+    parts: dict = field(default_factory=dict)  # body -> the part of it struck (compound bodies only)
 
     def values(self) -> dict:
         """The event signals of SOUND.md at this hit (distance and wind speed are added by the renderer)."""
@@ -257,14 +258,17 @@ def _of_pair(event: dict, pair: tuple) -> bool:
 
 def make_hit(plan, event: dict, local: dict, index: int) -> Hit:
     bodies = tuple(event.get("bodies", ()))
+    parts = {b: p for b, p in zip(bodies, event.get("parts") or ()) if p is not None}
     speed = abs(float(event.get("normal_speed", 0.0)))
-    props = [plan.contact_props[b] for b in bodies if b in plan.contact_props]
+    # a compound body's contact is its part's: its curvature and its material's stiffness
+    props = [plan.contact_props.get((b, parts[b]), plan.contact_props.get(b)) if b in parts else
+             plan.contact_props[b] for b in bodies if b in plan.contact_props]
     props = props or [{"mass": 1.0, "radius": math.inf, "young": None, "poisson": 0.3}]
     tau = contact_duration(props[0], props[1] if len(props) > 1 else None, speed, plan.fs)
     time = float(event["time"])
     return Hit(time, int(round((time - plan.start) * plan.fs)), bodies, float(event.get("impulse", 0.0)), speed,
                abs(float(event.get("tangential_speed", 0.0))), np.asarray(event.get("point", (0, 0, 0)), float),
-               local, tau, index)
+               local, tau, index, parts)
 
 
 def new_record(plan) -> MotionRecord:

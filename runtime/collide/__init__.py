@@ -26,6 +26,8 @@ from .narrow import needs_fcl
 from .pairs import count_pairs, excluded_keys, exclusion_pairs, pair_keys
 from .shapes import KIND_NAMES, build_table
 
+COMPOUND = -2  # the plan's count of compound bodies (not a shape kind of the table)
+
 # contacts are kept (and act) while the surfaces are up to this far apart, m; boxes grow by it in the broad phase
 CONTACT_MARGIN = 1e-4
 # friction and restitution of a body without a material (the language's material defaults)
@@ -38,8 +40,10 @@ class CollisionPlan:
     """What is decided once: which bodies collide, their geometry and materials, which pairs are excluded.
 
     collidable (c,) body indices; excluded: sorted pair keys i * n + j of excluded pairs; pairs: how many pairs
-    can touch; reasons: how many were excluded and why; friction, restitution (n,), has_material (n,) bool;
-    fcl_bodies: bodies that go through python-fcl (empty: fcl is never imported); margin (m)."""
+    can touch; reasons: how many were excluded and why; friction, restitution, has_material (bool) of each body,
+    then of each part of the compound bodies (table.elements); fcl_bodies: bodies that go through
+    python-fcl (empty: fcl is never imported), fcl_elements their shapes (indices of table.elements when there
+    are compound bodies); margin (m)."""
 
     table: object
     collidable: np.ndarray
@@ -53,6 +57,7 @@ class CollisionPlan:
     margin: float
     kinds: dict
     windows: tuple = ()  # ((start, end, keys), ...): the pairs an `exclude` with a window excludes in it
+    fcl_elements: np.ndarray | None = None  # what python-fcl holds: fcl_bodies, or (compound bodies) elements
 
     @property
     def always_excluded(self) -> np.ndarray:
@@ -73,7 +78,8 @@ class CollisionPlan:
         return Collider(self, simulation)
 
     def mix(self, a, b):
-        """Friction and restitution of contacts between bodies a and b (k,): friction sqrt(mu_a mu_b),
+        """Friction and restitution of contacts between elements a and b (k,) (bodies, or the parts of compound
+        bodies: compound.contact_elements): friction sqrt(mu_a mu_b),
         restitution max(e_a, e_b) (Box2D's rules); a body without a material takes the other's values, two
         without take the defaults."""
         ha, hb = self.has_material[a], self.has_material[b]
@@ -84,7 +90,7 @@ class CollisionPlan:
         return mu, e
 
     def describe(self) -> str:
-        kinds = ", ".join(f"{KIND_NAMES[k]} x{c}" for k, c in sorted(self.kinds.items()))
+        kinds = ", ".join(f"{KIND_NAMES.get(k, 'compound')} x{c}" for k, c in sorted(self.kinds.items()) if k != -1)
         narrow = "closed forms" + (f" + python-fcl ({len(self.fcl_bodies)} bodies)" if len(self.fcl_bodies) else "")
         reasons = ", ".join(f"{v} {k}" for k, v in self.reasons.items() if v)
         return (f"collisions: {len(self.collidable)} bodies ({kinds}), {self.pairs} pairs can touch"
@@ -100,36 +106,50 @@ def compile_collisions(scene, plan, folder=None) -> CollisionPlan | None:
     pairs = count_pairs(collidable, dynamic, excluded)
     if pairs <= 0:
         return None
-    kinds = _kinds(scene, collidable)
-    fcl_kinds = _kinds_needing_fcl(kinds, collidable, dynamic, excluded, len(scene.bodies))
     # a mesh is named relative to the scene's folder: the plan's when it knows it, else searched for (signals.py)
     folders = asset_folders(scene, folder if folder is not None else getattr(plan, "folder", None))
     table = build_table(scene, [int(i) for i in collidable], folders)
+    compound = np.array([scene.bodies[i].shape.type == "compound" for i in collidable], bool)
+    kinds = np.where(compound, -1, table.kind[collidable])  # a compound's parts are looked at below
+    fcl_kinds = _kinds_needing_fcl(kinds, collidable, dynamic, excluded, len(scene.bodies))
     fcl_bodies = collidable[np.isin(kinds, list(fcl_kinds))] if fcl_kinds else np.zeros(0, np.int64)
-    friction, restitution, has = _materials(scene)
+    fcl_parts = fcl_bodies
+    if table.elements is not None:
+        from .compound import fcl_elements
+
+        touchable = _touchable_pairs(collidable[compound], collidable, dynamic, excluded, len(scene.bodies))
+        fcl_parts = np.union1d(fcl_bodies, fcl_elements(scene, table, table.elements, touchable)).astype(np.int64)
+        fcl_bodies = np.unique(table.elements.owner[fcl_parts]).astype(np.int64)
+    friction, restitution, has = _materials(scene, table.elements)
     still = int(np.count_nonzero(~dynamic[collidable]))
     reasons = {"joined by a constraint": len(keys["joined"]),
                "by `exclude`": len(np.setdiff1d(keys["excluded"], keys["joined"])),
                "neither dynamic": still * (still - 1) // 2}
     counted = {int(k): int(c) for k, c in zip(*np.unique(kinds, return_counts=True))}
+    if compound.any():
+        counted[COMPOUND] = int(compound.sum())
     index = scene.body_index()
     windows = tuple((ex.start, ex.end, pair_keys(np.array(exclusion_pairs(ex, index), np.int64).reshape(-1, 2),
                                                  len(scene.bodies)))
                     for ex in scene.exclusions if ex.start > plan.start or ex.end < plan.end)
     return CollisionPlan(table, collidable, excluded, pairs, reasons, friction, restitution, has, fcl_bodies,
-                         CONTACT_MARGIN, counted, windows)
+                         CONTACT_MARGIN, counted, windows, fcl_parts)
 
 
-def _kinds(scene, collidable) -> np.ndarray:
-    from .shapes import KINDS
-
-    return np.array([KINDS[scene.bodies[i].shape.type] for i in collidable], np.int64)
+def _touchable_pairs(compounds, collidable, dynamic, excluded, n) -> np.ndarray:
+    """(k,2) the pairs of a compound body with another collidable body that can touch (not both unable to move,
+    not excluded for the whole run)."""
+    pairs = np.array([(min(c, o), max(c, o)) for c in compounds.tolist() for o in collidable.tolist() if o != c],
+                     np.int64).reshape(-1, 2)
+    pairs = np.unique(pairs, axis=0)
+    keep = (dynamic[pairs[:, 0]] | dynamic[pairs[:, 1]]) & ~np.isin(pair_keys(pairs, n), excluded)
+    return pairs[keep]
 
 
 def _kinds_needing_fcl(kinds, collidable, dynamic, excluded, n) -> set:
     """Shape kinds that meet, in at least one pair that can touch, a kind with no closed-form test."""
     needed = set()
-    present = sorted(set(kinds.tolist()))
+    present = sorted(k for k in set(kinds.tolist()) if k >= 0)  # (-1: a compound body, whose parts count)
     for ka, kb in itertools.combinations_with_replacement(present, 2):
         if not needs_fcl(ka, kb):
             continue
@@ -146,12 +166,18 @@ def _kinds_needing_fcl(kinds, collidable, dynamic, excluded, n) -> set:
     return needed
 
 
-def _materials(scene):
+def _materials(scene, elements=None):
+    """friction, restitution, has_material of every element: the bodies, then the parts (each its own material,
+    or its body's)."""
     n = len(scene.bodies)
+    owners = [body.material for body in scene.bodies]
+    if elements is not None:
+        owners += [scene.bodies[int(elements.owner[e])].shape.parts[int(elements.index[e])].material
+                   for e in range(n, len(elements.owner))]
     materials = {m.name: m for m in scene.materials}
-    friction, restitution, has = np.zeros(n), np.zeros(n), np.zeros(n, bool)
-    for i, body in enumerate(scene.bodies):
-        if body.material in materials:
-            m = materials[body.material]
+    friction, restitution, has = np.zeros(len(owners)), np.zeros(len(owners)), np.zeros(len(owners), bool)
+    for i, name in enumerate(owners):
+        if name in materials:
+            m = materials[name]
             friction[i], restitution[i], has[i] = m.friction, m.restitution, True
     return friction, restitution, has

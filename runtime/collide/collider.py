@@ -29,6 +29,7 @@ from ..core.build import PAIR_TURN
 from ..core.contact import LIFTS, SLIPS, STOPS
 from ..core.data import COUNTER_TURNED_BACK
 from ..rotation import quat_to_matrix, world_inverse_inertia
+from .compound import contact_elements
 from .contacts import ContactSet
 from .events import EventLog
 from .narrow import closed_form
@@ -73,12 +74,19 @@ class Collider:
         self.t_saved = self.plan.start
         self.broad = BroadPhase(cplan.table, cplan.collidable, self.plan.dynamic, cplan.excluded, cplan.margin,
                                 still=_never_moving(self.plan))
-        self.fcl = None
+        self.fcl, self.compound = None, None
+        elements = cplan.table.elements
         if len(cplan.fcl_bodies):
             from .meshes import FclPairs
 
-            self.fcl = FclPairs(cplan.table, cplan.fcl_bodies)
-        self.log = EventLog(self.plan.names, sim.events, self.plan.frame_times)
+            # over the elements when there are compound bodies (their first n entries are the bodies' own)
+            held = cplan.fcl_bodies if cplan.fcl_elements is None else cplan.fcl_elements
+            self.fcl = FclPairs(elements.table if elements is not None else cplan.table, held)
+        if elements is not None:
+            from .compound import CompoundPairs
+
+            self.compound = CompoundPairs(elements, self.fcl)
+        self.log = EventLog(self.plan.names, sim.events, self.plan.frame_times, elements)
         self.lasting = ContactSet(sim, cplan)
         self.gravity = float(np.linalg.norm(self.plan.gravity))  # |g|, m/s2
         self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * self.plan.step)
@@ -189,8 +197,9 @@ class Collider:
             frame_contacts(self.sim._act, c.model.constraints, c.scratch.param, self.sim.state.y, c.scratch.R,
                            c.scratch.impulse, out)
             table = out[0]
-        cons = self.sim.compiled.model.constraints
-        bodies = {k: (int(cons.body[k, 0]), int(cons.body[k, 1])) for k in self.lasting.instance_of.values()}
+        contacts = self.lasting.contacts
+        bodies = {k: (contacts[key].a, contacts[key].b, contacts[key].part_a, contacts[key].part_b)
+                  for key, k in self.lasting.instance_of.items()}
         self.log.frame(t, table, bodies)
 
     def _save_start(self) -> None:
@@ -280,14 +289,17 @@ class Collider:
         a = np.concatenate([np.full(len(f[2]), f[4]) for f, _ in parts])
         b = np.concatenate([np.full(len(f[2]), f[5]) for f, _ in parts])
         pair = np.concatenate([np.full(len(f[2]), p) for f, p in parts])
-        mu, e = self.cp.mix(a, b)
+        features = np.concatenate([np.asarray(f[3], np.int64) for f, _ in parts])
+        mu, e = self.cp.mix(*contact_elements(self.cp.table.elements, a, b, features))  # each part's material
         return Contacts(a, b, np.concatenate([f[0] for f, _ in parts]), np.concatenate([f[1] for f, _ in parts]),
-                        np.concatenate([f[2] for f, _ in parts]), pair, mu, e,
-                        np.concatenate([np.asarray(f[3], np.int64) for f, _ in parts]))
+                        np.concatenate([f[2] for f, _ in parts]), pair, mu, e, features)
 
     def pair_contacts(self, i, j, x, R, margin):
-        """(points, normals, depths, features, a, b) of bodies i and j, normals from b toward a."""
+        """(points, normals, depths, features, a, b) of bodies i and j, normals from b toward a (a and b: the
+        pair's bodies in the order of its test; for a compound body, one order per pair of parts, arrays)."""
         table = self.cp.table
+        if self.compound is not None and (table.compound(i) or table.compound(j)):
+            return self.compound.contacts(i, j, x, R, margin)
         test = closed_form(table.kind[i], table.kind[j])
         if test is None:
             return (*self.fcl.contacts(i, j, x, R, margin), i, j)
@@ -298,6 +310,8 @@ class Collider:
     def distance(self, i, j, x, R, known=frozenset()) -> float:
         """Signed distance of bodies i and j (negative: interpenetrating by that much); with `known` (features),
         of their other features only."""
+        if self.compound is not None and (self.cp.table.compound(i) or self.cp.table.compound(j)):
+            return self.compound.distance(i, j, x, R, known)
         points, normals, depths, features, a, b = self.pair_contacts(i, j, x, R, math.inf)
         if known:
             depths = depths[[int(f) not in known for f in features]]

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..core import model as M
 from ..rotation import quat_conjugate, quat_multiply
-from .shapes import BOX, CAPSULE, FCL_POINT, PLANE, SPHERE, VERTEX_OF_B
+from .shapes import BOX, CAPSULE, FCL_POINT, PLANE, SPHERE, VERTEX_OF_B, local_feature, part_of
 
 # a contact whose points part faster than this after the impulses (m/s) is not kept: the bodies separate
 SEPARATING_SPEED = 1e-6
@@ -56,6 +56,8 @@ class Contact:
     anchor: np.ndarray  # (3,) in b's frame: where a sticking point stuck
     mu: float
     mode: str  # "stick" | "slide" | "free" (no friction)
+    part_a: int = -1  # the parts of compound bodies a and b that touch (-1: the body's own shape)
+    part_b: int = -1
 
     def rows(self) -> int:
         return 3 if self.mode == "stick" and self.family == M.CONTACT else 1
@@ -100,7 +102,7 @@ class ContactSet:
                 key = (int(found.a[i]), int(found.b[i]), int(found.feature[i]))
                 u = _relative_velocity(found, i, x, v, w)
                 n = found.normal[i]
-                if found.feature[i] >= FCL_POINT:
+                if local_feature(found.feature[i]) >= FCL_POINT:
                     continue  # fcl's point somewhere in an overlap (an edge across an edge): impulses only
                 deep = found.depth[i] > REJOIN_DEPTH
                 # a point inside the other body is held (its row puts it back on the surface), parting or not
@@ -217,55 +219,68 @@ class ContactSet:
 
     def _new(self, found, i, x, R, slip) -> Contact:
         a, b, n, depth = int(found.a[i]), int(found.b[i]), found.normal[i].copy(), float(found.depth[i])
-        table = self.table
-        ka, kb = table.kind[a], table.kind[b]
+        sa, sb = self._shape(a, part_of(found.feature[i], 0)), self._shape(b, part_of(found.feature[i], 1))
+        ka, kb = sa.kind, sb.kind
         # a's point on b's face: a sphere, or the body whose vertex it is, takes a's part
-        if (kb == SPHERE and ka != SPHERE) or VERTEX_OF_B <= found.feature[i] < FCL_POINT:
+        if (kb == SPHERE and ka != SPHERE) or VERTEX_OF_B <= local_feature(found.feature[i]) < FCL_POINT:
             a, b, n, slip = b, a, -n, -slip
-            ka, kb = kb, ka
+            (ka, sa), (kb, sb) = (kb, sb), (ka, sa)
         p = found.point[i]
         on_a, on_b = p - 0.5 * depth * n, p + 0.5 * depth * n  # each surface's touching point
         Ra, Rb = R[a], (R[b] if b >= 0 else np.eye(3))
         to_b = lambda point: Rb.T @ (point - _position(x, b))  # noqa: E731
         mu = float(found.mu[i])
-        if ka == SPHERE and kb == SPHERE:
-            return Contact(a, b, M.CONTACT_SPHERES, np.zeros(3), float(table.radius[a] + table.radius[b]),
-                           np.zeros(3), Rb.T @ n, np.zeros(3), np.zeros(3), (NO_EDGE, NO_EDGE), np.zeros(3), mu,
-                           "free")
+        if ka == SPHERE and kb == SPHERE:  # their centres in their bodies' frames
+            return Contact(a, b, M.CONTACT_SPHERES, sa.offset.copy(), float(sa.radius + sb.radius),
+                           sb.offset.copy(), Rb.T @ n, np.zeros(3), np.zeros(3), (NO_EDGE, NO_EDGE), np.zeros(3), mu,
+                           "free", sa.part, sb.part)
         if ka in (SPHERE, CAPSULE):
-            radius = float(table.radius[a])
+            radius = float(sa.radius)
             point = Ra.T @ (on_a + radius * n - x[a])  # the centre of the sphere that touches
         else:
             radius, point = 0.0, Ra.T @ (on_a - x[a])
         normal = Rb.T @ n
         mode = "free" if mu <= 0.0 else ("stick" if np.linalg.norm(slip) <= STICK_SPEED else "slide")
         t1, t2 = _basis(normal, Rb.T @ slip if mode == "slide" else None)
-        origin, half = to_b(on_b), self._curved(b)
+        origin, half = to_b(on_b), self._curved(b, sb)
         if kb == BOX:
-            axis = int(np.argmax(np.abs(normal)))
-            if abs(normal[axis]) > 1.0 - 1e-9:
-                origin, (t1, t2), half = self._box_face(b, axis, normal, mode, t1, t2)
+            own = sb.turn.T @ normal  # the normal in the box's own axes (a part's are turned in its body)
+            axis = int(np.argmax(np.abs(own)))
+            if abs(own[axis]) > 1.0 - 1e-9:
+                origin, (t1, t2), half = self._box_face(sb, axis, own, mode, t1, t2)
         elif kb == PLANE:
             half = (NO_EDGE, NO_EDGE)
         anchor = to_b(x[a] + Ra @ point - radius * n) if radius == 0.0 else to_b(on_b)
-        return Contact(a, b, M.CONTACT, point, radius, origin, normal, t1, t2, half, anchor, mu, mode)
+        return Contact(a, b, M.CONTACT, point, radius, origin, normal, t1, t2, half, anchor, mu, mode, sa.part,
+                       sb.part)
 
-    def _box_face(self, b, axis, normal, mode, t1, t2):
-        """A box's face: its centre, its two other axes (the tangents, unless the contact slides: t1 along the
-        slip) and its half extents along the tangents."""
-        half = self.table.half[b]
+    def _box_face(self, box, axis, own, mode, t1, t2):
+        """A box's face, in its body's frame: its centre, its two other axes (the tangents, unless the contact
+        slides: t1 along the slip) and its half extents along the tangents; own: the normal in the box's axes."""
+        half, turn = box.half, box.turn
         e = np.eye(3)
         others = [k for k in range(3) if k != axis]
-        centre = np.sign(normal[axis]) * half[axis] * e[axis]
+        centre = box.offset + turn @ (np.sign(own[axis]) * half[axis] * e[axis])
         if mode == "slide":  # the tangents follow the slip; the face's bounds are checked along them (a disc)
             return centre, (t1, t2), (float(min(half[others])),) * 2
-        return centre, (e[others[0]], e[others[1]]), (float(half[others[0]]), float(half[others[1]]))
+        return centre, (turn @ e[others[0]], turn @ e[others[1]]), (float(half[others[0]]), float(half[others[1]]))
 
-    def _curved(self, b) -> tuple:
+    def _curved(self, b, shape) -> tuple:
         if b < 0:
             return (NO_EDGE, NO_EDGE)
-        size = CURVED_FACE * float(np.min(self.table.half[b]))
+        size = CURVED_FACE * float(np.min(shape.half))
         return (size, size)
+
+    def _shape(self, body: int, part: int) -> "_Shape":
+        """The shape of a contact's side: the body's own, or its part's (with where it sits in the body)."""
+        elements = self.table.elements
+        if body < 0:
+            return _Shape(PLANE, 0.0, np.full(3, np.inf), np.zeros(3), np.eye(3), -1)
+        if elements is None or part < 0:
+            t = self.table
+            return _Shape(int(t.kind[body]), float(t.radius[body]), t.half[body], np.zeros(3), np.eye(3), -1)
+        e, t = elements.element(body, int(part)), elements.table
+        return _Shape(int(t.kind[e]), float(t.radius[e]), t.half[e], elements.offset[e], elements.turn[e], int(part))
 
     # -- into the compiled model ------------------------------------------------------------------------------
 
@@ -330,6 +345,18 @@ class ContactSet:
         r = c.joint_rows
         total = sum(k.rows() for k in self.contacts.values())
         return np.arange(r, r + total, dtype=np.int64)
+
+
+@dataclass
+class _Shape:
+    """One side of a contact: kind, radius, half (3,), and where it sits in its body (offset (3,), turn (3,3))."""
+
+    kind: int
+    radius: float
+    half: np.ndarray
+    offset: np.ndarray
+    turn: np.ndarray
+    part: int
 
 
 def _world(R, b, vector):

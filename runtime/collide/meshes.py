@@ -61,43 +61,13 @@ class MeshShape:
 # ---- loading ---------------------------------------------------------------------------------------------------
 
 def read_mesh(path) -> tuple:
-    """(vertices (V,3), faces (F,3)) of an OBJ (v/f lines; polygons fanned into triangles; v/vt/vn and negative
-    indices allowed) or an STL (ASCII or binary; coincident corners merged)."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".obj":
-        return _read_obj(path.read_text(errors="replace"))
-    if suffix == ".stl":
-        return _read_stl(path.read_bytes())
-    raise MeshError(f"`{path}`: unknown mesh format `{suffix}` (use .obj or .stl)")
+    """(vertices (V,3), faces (F,3)) of an OBJ or STL file (isaac_lang.meshfile: the reader lowering uses too)."""
+    from isaac_lang.meshfile import MeshFileError, read_mesh as read
 
-
-def _read_obj(text: str) -> tuple:
-    vertices, faces = [], []
-    for line in text.splitlines():
-        parts = line.split()
-        if not parts:
-            continue
-        if parts[0] == "v":
-            vertices.append([float(p) for p in parts[1:4]])
-        elif parts[0] == "f":
-            ids = [int(p.split("/")[0]) for p in parts[1:]]
-            ids = [i - 1 if i > 0 else len(vertices) + i for i in ids]
-            faces.extend([ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1))
-    return np.asarray(vertices, float).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3)
-
-
-def _read_stl(data: bytes) -> tuple:
-    count = int.from_bytes(data[80:84], "little") if len(data) >= 84 else -1
-    if len(data) == 84 + 50 * count:  # binary: 80-byte header, count, then 50 bytes per triangle
-        record = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attr", "<u2")])
-        corners = np.frombuffer(data, record, count, 84)["corners"].astype(float).reshape(-1, 3)
-    else:
-        words = data.decode("ascii", errors="replace").split()
-        corners = np.array([[float(w) for w in words[k + 1:k + 4]] for k, w in enumerate(words) if w == "vertex"])
-        corners = corners.reshape(-1, 3)
-    vertices, inverse = np.unique(np.round(corners, 12), axis=0, return_inverse=True)
-    return vertices, inverse.reshape(-1, 3)
+    try:
+        return read(path)
+    except MeshFileError as error:
+        raise MeshError(str(error)) from None
 
 
 def resolve(name: str, folders) -> Path:
@@ -110,11 +80,12 @@ def resolve(name: str, folders) -> Path:
     return found
 
 
-def load_shape(name: str, scale: float, folders) -> MeshShape:
+def load_shape(name: str, scale: float, folders, offset=(0.0, 0.0, 0.0)) -> MeshShape:
+    """The mesh of a file, its vertices times scale, plus offset (where the file's origin sits in its frame)."""
     vertices, faces = read_mesh(resolve(name, folders))
     if len(faces) == 0:
         raise MeshError(f"`{name}` has no faces")
-    vertices = vertices * scale
+    vertices = vertices * scale + np.asarray(offset, float)
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
     volume = _volume(vertices, faces)
     convex, hull_faces = _hull(vertices, volume)

@@ -26,9 +26,7 @@ touching balls leave together. A flat box landing on four corners is one generat
 Then one resting pass over every contact with restitution 0 (targets u+ >= 0, or >= -gap/h for a contact
 still apart by gap), which leaves no contact approaching.
 
-Resting contact without sinking or jitter: positions are corrected apart from velocities (split impulses,
-Catto 2006): pseudo-impulses that move the bodies by the penetration beyond SLOP, through the same rows with
-the joint rows again exact, and no change to any velocity, so the correction adds no energy.
+Contacts that last are not impulses: they are rows of the step (runtime/core/contact.py, collide/contacts.py).
 """
 from __future__ import annotations
 
@@ -37,13 +35,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import linsolve
-from ..rotation import quat_integrate
 from . import lcp
 
 # contacts in an island are re-solved at most this many generations per impact (then restitution 0)
 MAX_GENERATIONS = 64
-# penetration left in place by the position correction, m (keeps a resting contact touching)
-SLOP = 1e-6
 
 
 @dataclass
@@ -249,74 +244,6 @@ class Response:
         apply_impulses(self.J[rows], b.slot(self.rows_ab[rows]), lam_c, b, b.v, b.w)
         if len(joint_rows):
             apply_impulses(self.joints.J[joint_rows], b.slot(self.joints.rb[joint_rows]), lam_j, b, b.v, b.w)
-
-    def _extent(self, bodies):
-        return _extent_of(self.c, self.x, self.bodies)[bodies]
-
-    def correct_positions(self, x, q) -> np.ndarray:
-        """Move the bodies apart by each contact's penetration beyond SLOP (split impulse; no velocity
-        changes), joints exact to first order: displacements D = M^-1 J^T lam with, on every normal row,
-        J D >= depth - SLOP, lam >= 0, complementary (the velocity problem with displacements for velocities).
-        Returns the bodies moved."""
-        if not np.any(self.c.depth > SLOP):
-            return np.zeros(0, np.int64)
-        b = self.bodies
-        dx, dphi = np.zeros_like(x), np.zeros_like(x)
-        for sel, joint_rows in self._islands:
-            # every contact takes part, a shallow one may close by at most what is left of its slop: lifting
-            # the bottom box of a stack lifts the ones above it
-            if not np.any(self.c.depth[sel] > SLOP):
-                continue
-            Jc, rbc = self.J[sel], b.slot(self.rows_ab[sel])
-            target = self.c.depth[sel] - SLOP
-            none = np.full(len(sel), -1, np.int64)
-            # the resting solve's W on these rows (its normal rows come first), else a fresh one
-            W, X_c = self._delassus.get(sel.tobytes(), (None, None))
-            if W is not None:
-                W, X_c = W[: len(sel), : len(sel)], None if X_c is None else X_c[:, : len(sel)]
-            elif len(joint_rows):
-                Jj, rbj = self.joints.J[joint_rows], b.slot(self.joints.rb[joint_rows])
-                W, _, _, X_c = schur(Jj, rbj, Jc, rbc, b, np.zeros(len(joint_rows)), np.zeros(len(sel)))
-            else:
-                W = linsolve.assemble_dense(Jc, rbc, b.inv_mass, b.inv_inertia)
-            lam = lcp.solve(W, np.zeros(len(sel)), target, np.zeros(len(sel)), none)
-            if X_c is not None:  # the joints' share: lam_j = -A_jj^+ A_jc lam (no joint velocity asked for)
-                apply_impulses(self.joints.J[joint_rows], b.slot(self.joints.rb[joint_rows]), -X_c @ lam, b, dx,
-                               dphi)
-            apply_impulses(Jc, rbc, lam, b, dx, dphi)
-        moved = np.flatnonzero(np.any(dx != 0, axis=1) | np.any(dphi != 0, axis=1))
-        # no correction moves a body further than all the penetrations together (the top of a stack moves by
-        # the sum of the depths below it; contradictory contacts, e.g. two opposite normals at one place, would
-        # otherwise ask for an unbounded push)
-        total = float(np.sum(np.maximum(self.c.depth - SLOP, 0.0)))
-        reach = np.linalg.norm(dx[moved], axis=1) + np.linalg.norm(dphi[moved], axis=1) * self._extent(moved)
-        scale = np.minimum(1.0, total / np.maximum(reach, 1e-300))
-        dx[moved] *= scale[:, None]
-        dphi[moved] *= scale[:, None]
-        x[moved] += dx[moved]
-        q[moved] = quat_integrate(q[moved], dphi[moved], 1.0)
-        return moved
-
-
-def project_joints(joints: Joints, bodies: Bodies, moved) -> None:
-    """Velocities of the joint rows touching `moved` bodies put back on the joints: the smallest change (in
-    the mass metric) with J V+ + ct = 0, lam = A^+ (-(J V + ct)), V += M^-1 J^T lam."""
-    slots = bodies.slot(joints.rb)
-    rows = np.flatnonzero(np.isin(slots, moved).any(axis=1))
-    if not len(rows):
-        return
-    J, slots = joints.J[rows], slots[rows]
-    A = linsolve.assemble_dense(J, slots, bodies.inv_mass, bodies.inv_inertia)
-    lam = _joint_solve(A, -(row_velocity(J, slots, bodies.v, bodies.w) + joints.ct[rows])[:, None])[:, 0]
-    apply_impulses(J, slots, lam, bodies, bodies.v, bodies.w)
-
-
-def _extent_of(c: Contacts, x, bodies):
-    """Per body, the largest arm from its centre to one of its contact points (how far a turn moves them)."""
-    extent = np.zeros(len(x))
-    for body in (c.a, c.b):
-        np.maximum.at(extent, body, np.linalg.norm(c.point - x[body], axis=1))
-    return extent
 
 
 def schur(Jj, rbj, Jc, rbc, bodies: Bodies, r_j, uc):

@@ -4,7 +4,12 @@ Shapes live in the body frame (origin at the centre of mass). Cylinders and caps
 z; `length` is the straight part (a capsule adds a hemisphere of `radius` at each end). A plane is the
 half-space below its surface: the surface passes through the body's position with the body-frame `normal`,
 and everything on the other side of the normal is solid (so nothing can tunnel through a floor).
-A mesh is its file's vertices times `scale`, in body coordinates (the file's origin is the centre of mass).
+A mesh is its file's vertices times `scale`, moved by the shape's `offset` (where the file's origin sits in the
+body frame: the centroid is the centre of mass when lowering computed it from the file).
+
+A compound body (docs/compound.md) has one entry here too, a box about its centre of mass that holds all of its
+parts (the broad phase's and the compiled step's "is anything near"; centred, so that the step's plane test, which
+measures from the body's position, holds it), and its parts in `elements` (compound.py tests them).
 """
 from __future__ import annotations
 
@@ -19,6 +24,11 @@ KIND_NAMES = {v: k for k, v in KINDS.items()}
 # index), a vertex of b (VERTEX_OF_B + its index: the contact's point is b's), a point of fcl's (FCL_POINT + k)
 VERTEX_OF_B = 1 << 20
 FCL_POINT = 1 << 21
+# a feature of a compound pair says which part of each body made it: local | (part_a + 1) << PART_SHIFT |
+# (part_b + 1) << (PART_SHIFT + PART_BITS), part -1 for a body that is its own shape (compound.py)
+PART_SHIFT = 22
+PART_BITS = 16
+LOCAL_MASK = (1 << PART_SHIFT) - 1
 
 # box corner signs, corner c = half * CORNER_SIGNS[c]; bit k of c set -> +half along axis k
 CORNER_SIGNS = np.array([[1.0 if c & (1 << k) else -1.0 for k in range(3)] for c in range(8)])
@@ -44,40 +54,106 @@ class ShapeTable:
     thin: np.ndarray
     mesh: np.ndarray
     meshes: list = field(default_factory=list)  # meshes.MeshShape
+    elements: "Elements | None" = None  # the parts of the compound bodies (None: there are none)
+
+    def compound(self, i: int) -> bool:
+        return self.elements is not None and self.elements.count[i] > 0
+
+
+@dataclass
+class Elements:
+    """What the narrow phase of a scene with compound bodies tests: entry e < n is body e's own shape (the body
+    table's; NONE for a compound body), the entries from n on are the compound bodies' parts.
+
+    table: ShapeTable (n+P,) of the shapes, each in its own frame; owner (n+P,) body; index (n+P,) the part's
+    number in its body (-1: a body's own shape); offset (n+P,3) where the element's origin sits in its body's frame
+    (a primitive's centre, a mesh file's origin); turn (n+P,3,3) its axes in the body frame; first, count (n,):
+    body b's parts are the elements first[b] .. first[b] + count[b] - 1 (count 0: b is its own element); names (P,)
+    the parts' names."""
+
+    table: ShapeTable
+    owner: np.ndarray
+    index: np.ndarray
+    offset: np.ndarray
+    turn: np.ndarray
+    first: np.ndarray
+    count: np.ndarray
+    names: list
+
+    def of(self, body: int) -> np.ndarray:
+        """The elements of a body: its parts, or itself."""
+        c = self.count[body]
+        return np.arange(self.first[body], self.first[body] + c) if c else np.array([body])
+
+    def element(self, body: int, part: int) -> int:
+        """Part number `part` of body (-1: the body's own shape)."""
+        return int(self.first[body] + part) if part >= 0 else int(body)
+
+    def part_name(self, body: int, part: int) -> str | None:
+        return self.names[int(self.first[body] + part) - len(self.first)] if part >= 0 else None
+
+
+def part_of(feature, side: int):
+    """The part number (-1: none) of a contact's body a (side 0) or b (side 1) that its feature names."""
+    return ((np.asarray(feature, np.int64) >> (PART_SHIFT + side * PART_BITS)) & ((1 << PART_BITS) - 1)) - 1
+
+
+def local_feature(feature):
+    """The feature within one shape (a corner, an end, a mesh vertex: narrow.py) of a possibly compound one."""
+    return np.asarray(feature, np.int64) & LOCAL_MASK
+
+
+def empty_table(n: int, meshes: list | None = None) -> ShapeTable:
+    return ShapeTable(np.zeros(n, np.int64), np.zeros(n), np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3)),
+                      np.zeros((n, 3)), np.full(n, np.inf), np.full(n, -1, np.int64), [] if meshes is None else meshes)
 
 
 def build_table(scene, collidable: list, scene_folder=None) -> ShapeTable:
     """The table for the scene's bodies; only bodies in `collidable` get a kind. Meshes are loaded here (and
     `meshes`, with its python-fcl import, is imported only when one is present)."""
-    n = len(scene.bodies)
-    table = ShapeTable(np.zeros(n, np.int64), np.zeros(n), np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3)),
-                       np.zeros((n, 3)), np.full(n, np.inf), np.full(n, -1, np.int64))
+    table = empty_table(len(scene.bodies))
+    compounds = [i for i in collidable if scene.bodies[i].shape.type == "compound"]
     for i in collidable:
         shape = scene.bodies[i].shape
-        kind = KINDS[shape.type]
-        table.kind[i] = kind
-        r = shape.radius or 0.0
-        table.radius[i] = r
-        if kind == SPHERE:
-            table.half[i] = r
-        elif kind == BOX:
-            table.half[i] = 0.5 * np.asarray(shape.size, float)
-        elif kind in (CAPSULE, CYLINDER):
-            table.half_length[i] = 0.5 * shape.length
-            table.half[i] = (r, r, 0.5 * shape.length + (r if kind == CAPSULE else 0.0))
-        elif kind == PLANE:
-            normal = np.asarray(shape.normal or (0.0, 1.0, 0.0), float)
-            table.normal[i] = normal / np.linalg.norm(normal)
-            table.half[i] = np.inf
-        elif kind == MESH:
-            from .meshes import load_shape
+        if shape.type != "compound":  # a compound's box is made from its parts (compound.py)
+            fill(table, i, shape, scene_folder, shape.offset)
+    if compounds:
+        from .compound import build_elements
 
-            mesh = load_shape(shape.file, shape.scale, scene_folder)
-            table.mesh[i] = len(table.meshes)
-            table.meshes.append(mesh)
-            table.half[i], table.centre[i] = mesh.half, mesh.centre
-        table.thin[i] = float(np.min(table.half[i]))
+        table.elements = build_elements(scene, table, compounds, scene_folder)
     return table
+
+
+def fill(table: ShapeTable, i: int, shape, folders, offset=(0.0, 0.0, 0.0), loaded: dict | None = None) -> None:
+    """Entry i of the table from an IR shape in its own frame (a mesh's vertices moved by offset); `loaded`
+    (file, scale, offset) -> mesh index keeps one copy of a mesh many parts share."""
+    kind = KINDS[shape.type]
+    table.kind[i] = kind
+    r = shape.radius or 0.0
+    table.radius[i] = r
+    if kind == SPHERE:
+        table.half[i] = r
+    elif kind == BOX:
+        table.half[i] = 0.5 * np.asarray(shape.size, float)
+    elif kind in (CAPSULE, CYLINDER):
+        table.half_length[i] = 0.5 * shape.length
+        table.half[i] = (r, r, 0.5 * shape.length + (r if kind == CAPSULE else 0.0))
+    elif kind == PLANE:
+        normal = np.asarray(shape.normal or (0.0, 1.0, 0.0), float)
+        table.normal[i] = normal / np.linalg.norm(normal)
+        table.half[i] = np.inf
+    elif kind == MESH:
+        from .meshes import load_shape
+
+        key = (shape.file, shape.scale, tuple(offset))
+        if loaded is None or key not in loaded:
+            table.meshes.append(load_shape(shape.file, shape.scale, folders, offset))
+            if loaded is not None:
+                loaded[key] = len(table.meshes) - 1
+        table.mesh[i] = loaded[key] if loaded is not None else len(table.meshes) - 1
+        mesh = table.meshes[table.mesh[i]]
+        table.half[i], table.centre[i] = mesh.half, mesh.centre
+    table.thin[i] = float(np.min(table.half[i]))
 
 
 def bounding_boxes(table: ShapeTable, index: np.ndarray, x: np.ndarray, R: np.ndarray, margin: float):

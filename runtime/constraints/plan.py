@@ -31,11 +31,16 @@ STABILIZE_STEPS = 20
 
 
 @dataclass
-class MovingNail:
-    family: int  # index into ConstraintPlan.families
+class MovingParameter:
+    """A constraint parameter that is a function of time (a nail's target, a world plane's point or normal, a
+    world axis of `orient`, a gear's radius): its expression and two derivatives, for the time table, and the
+    parameter slots (core/model.py) they are written to at every grid row."""
+
+    family: int  # index into ConstraintPlan.families (a family name until the families are laid out)
     instance: int
-    position: E.Expr  # P(t)
-    velocity: E.Expr  # dP/dt
+    name: str  # the layout field (target, plane_point, plane_normal, axis_b, radius_a, radius_b)
+    value: E.Expr  # P(t)
+    rate: E.Expr  # dP/dt
     acceleration: E.Expr  # d2P/dt2
 
 
@@ -65,7 +70,7 @@ class ConstraintPlan:
     row_kd: np.ndarray  # (M,) 1/s, Baumgarte velocity gain
     row_compliance: np.ndarray  # (M,) procedural softness
     row_bodies: np.ndarray  # (M, 2) int, fixed for the whole run
-    moving_nails: list
+    moving: list  # [MovingParameter]
     epochs: list = field(default_factory=list)
     linear_solver: str = "sparse"  # "dense": every pair of rows coupled (a full Cholesky), else minimum degree
     stabilization: str = "projection"  # "baumgarte": no row is ever held (projected); all assemble, always
@@ -148,30 +153,44 @@ def compile_constraints(scene: ir.Scene, step: float, x0, q0) -> ConstraintPlan:
 
 def _add_instance(builder, term: ir.ConstraintTerm, index: dict, moving: list) -> int:
     b = [index[name] for name in term.bodies] + [L.WORLD]
-    p = term.param
-    if term.family == "nail":
-        target = p("target")
-        start = E.evaluate(target, {"t": 0.0}) if not isinstance(target, E.Const) else target.value
-        instance = builder.add(body=b[0], point=p("point"), target=np.asarray(start, float))
-        if not isinstance(target, E.Const):
-            velocity = E.derivative(target)
-            moving.append(MovingNail("nail", instance, target, velocity, E.derivative(velocity)))
-        return instance
-    if term.family == "point":
-        return builder.add(body_a=b[0], point_a=p("point_a"), body_b=b[1], point_b=p("point_b"))
-    if term.family == "orient":
-        return builder.add(body_a=b[0], axis_a=p("axis_a"), body_b=b[1], axis_b=p("axis_b"))
-    if term.family == "plane":
-        return builder.add(body_a=b[0], point_a=p("point_a"), body_b=b[1], plane_point=p("plane_point"),
-                           plane_normal=p("normal"))
-    if term.family == "gear":
-        return builder.add(body_a=b[0], axis_a=p("axis_a"), radius_a=p("radius_a"), body_b=b[1],
-                           axis_b=p("axis_b"), radius_b=p("radius_b"))
-    if term.family == "rope":
-        return builder.add(gear=b[0], arm=p("arm"), weight=b[1], direction=p("direction"))
-    if term.family == "element":
-        return builder.add(body_a=b[0], body_b=b[1], axis=p("axis"), rotational=p("rotational"))
-    raise ValueError(f"unknown constraint family {term.family}")
+    family = term.family
+    values = {}
+
+    def p(name):
+        """The parameter at t = 0; a function of time is noted for the time table (MovingParameter)."""
+        value = term.param(name)
+        if isinstance(value, E.Expr) and not isinstance(value, E.Const):
+            values[name] = value
+            return np.asarray(E.evaluate(value, {"t": 0.0}), float)
+        return value.value if isinstance(value, E.Const) else value
+
+    if family == "nail":
+        instance = builder.add(body=b[0], point=p("point"), target=p("target"))
+    elif family == "point":
+        instance = builder.add(body_a=b[0], point_a=p("point_a"), body_b=b[1], point_b=p("point_b"))
+    elif family == "orient":
+        instance = builder.add(body_a=b[0], axis_a=p("axis_a"), body_b=b[1], axis_b=p("axis_b"))
+    elif family == "plane":
+        instance = builder.add(body_a=b[0], point_a=p("point_a"), body_b=b[1], plane_point=p("plane_point"),
+                               plane_normal=p("normal"))
+    elif family == "gear":
+        instance = builder.add(body_a=b[0], axis_a=p("axis_a"), radius_a=p("radius_a"), body_b=b[1],
+                               axis_b=p("axis_b"), radius_b=p("radius_b"))
+    elif family == "rope":
+        instance = builder.add(gear=b[0], arm=p("arm"), weight=b[1], direction=p("direction"))
+    elif family == "element":
+        instance = builder.add(body_a=b[0], body_b=b[1], axis=p("axis"), rotational=p("rotational"))
+    else:
+        raise ValueError(f"unknown constraint family {family}")
+    for name, value in values.items():
+        rate = E.derivative(value)
+        moving.append(MovingParameter(family, instance, LAYOUT_NAME.get((family, name), name), value, rate,
+                                      E.derivative(rate)))
+    return instance
+
+
+# the term's parameter name -> the layout's field, where they differ
+LAYOUT_NAME = {("plane", "normal"): "plane_normal"}
 
 
 def _finish(scene, step, families, offsets, total, meta, moving, x0, q0) -> ConstraintPlan:
@@ -192,7 +211,7 @@ def _finish(scene, step, families, offsets, total, meta, moving, x0, q0) -> Cons
         row_start=np.array([constraints[c].start for c in row_constraint]).reshape(-1),
         row_end=np.array([constraints[c].end for c in row_constraint]).reshape(-1),
         row_ks=ks, row_kd=kd, row_compliance=compliance,
-        row_bodies=_row_bodies(families, offsets, total, x0, q0), moving_nails=moving,
+        row_bodies=_row_bodies(families, offsets, total, x0, q0), moving=moving,
         linear_solver="dense" if scene.solver.linear_solver == "dense" else "sparse",
         stabilization=scene.solver.stabilization,
     )

@@ -14,8 +14,10 @@ RUNAWAY_SPEED = 1e6
 
 @kernel
 def place_kinematic(kin, table, j, y):
-    """The kinematic bodies at their paths' pose and velocity at grid row j of the time table."""
+    """The kinematic bodies (those on their path now) at their paths' pose and velocity at grid row j."""
     for i in range(len(kin.body)):
+        if not kin.on[i]:
+            continue
         b, c = kin.body[i], kin.column[i]
         for e in range(3):
             y[b, e] = table[j, c + M.KIN_X + e]

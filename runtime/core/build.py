@@ -46,9 +46,23 @@ class CompiledPlan:
     def _kinematic(self, plan) -> M.Kinematic:
         paths = plan.kinematics
         if paths is None:
-            return M.Kinematic(np.zeros(0, np.int64), np.zeros(0, np.int64))
+            return M.Kinematic(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.bool_))
         columns = [self.table.add_kinematic(paths, k) for k in range(len(paths.index))]
-        return M.Kinematic(np.asarray(paths.index, np.int64).copy(), np.asarray(columns, np.int64))
+        # a body with a window starts off its path; Simulation puts it on (set_on_path) when its window begins
+        on = ~np.isfinite(paths.windows).any(axis=1)
+        return M.Kinematic(np.asarray(paths.index, np.int64).copy(), np.asarray(columns, np.int64), on)
+
+    def set_on_path(self, k: int, on: bool) -> None:
+        """Path k's body follows its path (kinematic: no mass for the solve) or leaves it (dynamic, with the
+        mass properties of the plan), from now on. The solve's structures are built anew."""
+        kin, bodies, plan = self.model.kinematic, self.model.bodies, self.plan
+        b = int(kin.body[k])
+        kin.on[k] = on
+        bodies.dynamic[b] = not on
+        bodies.inv_mass[b] = 0.0 if on else 1.0 / plan.mass[b]
+        bodies.inv_inertia[b] = 0.0 if on else np.linalg.inv(plan.inertia_body[b])
+        bodies.inv_moments[b] = np.diag(bodies.inv_inertia[b])
+        self._actives.clear()
 
     def _loads(self, plan) -> M.Loads:
         loads = plan.forces.loads
@@ -59,13 +73,17 @@ class CompiledPlan:
                        np.asarray(columns, np.int64))
 
     def _drivers(self, plan) -> list:
-        """(instance, slot, column, size) of every moving nail: its target and two derivatives."""
+        """(instance, slot, column, size) of every moving constraint parameter: its value and two derivatives,
+        each into its slot (M.MOVING_SLOTS)."""
         c = plan.constraints
         first = np.cumsum([0] + [M.instance_count(f) for f in c.families])
         drivers = []
-        for nail in c.moving_nails:
-            column = self.table.add_moving_vector(nail.position, nail.velocity, nail.acceleration)
-            drivers.append((int(first[nail.family] + nail.instance), M.NAIL_TARGET, column, 9))
+        for moving in c.moving:
+            family = M.FAMILY_OF_LAYOUT[type(c.families[moving.family])]
+            slots, size = M.MOVING_SLOTS[family, moving.name]
+            column = self.table.add_moving(moving.value, moving.rate, moving.acceleration, size)
+            instance = int(first[moving.family] + moving.instance)
+            drivers += [(instance, slot, column + size * e, size) for e, slot in enumerate(slots)]
         return drivers
 
     def _wind(self, plan):

@@ -45,7 +45,7 @@ POINT_A, POINT_B = 0, 3
 ORIENT_AXIS_A, ORIENT_AXIS_B, ORIENT_AXIS_B_RATE, ORIENT_AXIS_B_ACCEL = 0, 3, 6, 9
 PLANE_POINT, PLANE_ORIGIN, PLANE_NORMAL = 0, 3, 6
 PLANE_ORIGIN_RATE, PLANE_ORIGIN_ACCEL, PLANE_NORMAL_RATE, PLANE_NORMAL_ACCEL = 9, 12, 15, 18
-GEAR_AXIS_A, GEAR_AXIS_B, GEAR_RADIUS_A, GEAR_RADIUS_B = 0, 3, 6, 7
+GEAR_AXIS_A, GEAR_AXIS_B, GEAR_RADIUS_A, GEAR_RADIUS_B, GEAR_RADIUS_A_RATE, GEAR_RADIUS_B_RATE = 0, 3, 6, 7, 8, 9
 ROPE_ARM, ROPE_DIRECTION = 0, 3
 ELEMENT_AXIS, ELEMENT_ROTATIONAL, ELEMENT_OFFSET, ELEMENT_REFERENCE = 0, 3, 4, 5
 # a contact of body a's point (or a sphere's centre and radius) with a face of b (or a plane): the point in a's
@@ -57,12 +57,23 @@ CONTACT_RADIUS, CONTACT_HALF1, CONTACT_HALF2, CONTACT_SLIDE_MU, CONTACT_MU = 18,
 # a contact of two spheres: their centres in their frames, the sum of their radii
 SPHERES_A, SPHERES_B, SPHERES_REACH = 0, 3, 6
 
+# the parameters that may be functions of time: (family, layout field) -> ((value, rate, acceleration) slots, size);
+# a slot of None is not written (a gear's row needs no radius acceleration)
+MOVING_SLOTS = {
+    (NAIL, "target"): ((NAIL_TARGET, NAIL_TARGET_RATE, NAIL_TARGET_ACCEL), 3),
+    (PLANE, "plane_point"): ((PLANE_ORIGIN, PLANE_ORIGIN_RATE, PLANE_ORIGIN_ACCEL), 3),
+    (PLANE, "plane_normal"): ((PLANE_NORMAL, PLANE_NORMAL_RATE, PLANE_NORMAL_ACCEL), 3),
+    (ORIENT, "axis_b"): ((ORIENT_AXIS_B, ORIENT_AXIS_B_RATE, ORIENT_AXIS_B_ACCEL), 3),
+    (GEAR, "radius_a"): ((GEAR_RADIUS_A, GEAR_RADIUS_A_RATE), 1),
+    (GEAR, "radius_b"): ((GEAR_RADIUS_B, GEAR_RADIUS_B_RATE), 1),
+}
+
 # columns of a kinematic body in the time table
 KIN_X, KIN_V, KIN_A, KIN_Q, KIN_W, KIN_ALPHA, KIN_WIDTH = 0, 3, 6, 9, 13, 16, 19
 
 Bodies = namedtuple("Bodies", "inv_mass mass inertia inv_inertia dynamic isotropic principal inv_moments weight "
                                "gyroscopic")
-Kinematic = namedtuple("Kinematic", "body column")
+Kinematic = namedtuple("Kinematic", "body column on")  # on (k,): on its path now (a body may leave it: `kinematic A .. B`)
 Springs = namedtuple("Springs", "body point stiffness rest damping")
 Loads = namedtuple("Loads", "body point column")
 Constraints = namedtuple("Constraints", "family body first_row rows param driver_instance driver_slot "

@@ -106,15 +106,20 @@ def _plane_row(row, a, b, param, k, y, R, C, J, ct, bias):
 
 
 @kernel
-def _gear_row(row, a, b, param, k, R, C, J, ct, bias):
+def _gear_row(row, a, b, param, k, y, R, C, J, ct, bias):
     """Velocity row r_a (w_a . A_a) + r_b (w_b . A_b) = 0, A = R axis: J_a = [0, r_a A_a], J_b = [0, r_b A_b];
-    bias = r_a w_a . (w_a x A_a) + ... = 0 identically."""
+    bias = d/dt(J) v = r_a' (w_a . A_a) + r_b' (w_b . A_b) (the radii may be functions of time; the axes'
+    own turning gives r w . (w x A) = 0 identically)."""
+    _, _, w_a = _state(y, a)
+    _, _, w_b = _state(y, b)
     A_a = rotate(R, a, row3(param, k, M.GEAR_AXIS_A))
     A_b = rotate(R, b, row3(param, k, M.GEAR_AXIS_B))
     zero = (0.0, 0.0, 0.0)
+    live_b = 1.0 if b >= 0 else 0.0
     _set_block(J, row, 0, zero, scale3(param[k, M.GEAR_RADIUS_A], A_a))
-    _set_block(J, row, 1, zero, scale3(param[k, M.GEAR_RADIUS_B] if b >= 0 else 0.0, A_b))
-    C[row], ct[row], bias[row] = 0.0, 0.0, 0.0
+    _set_block(J, row, 1, zero, scale3(param[k, M.GEAR_RADIUS_B] * live_b, A_b))
+    C[row], ct[row] = 0.0, 0.0
+    bias[row] = param[k, M.GEAR_RADIUS_A_RATE] * dot3(w_a, A_a) + live_b * param[k, M.GEAR_RADIUS_B_RATE] * dot3(w_b, A_b)
 
 
 @kernel
@@ -197,7 +202,7 @@ def instance_rows(k, cons, param, y, R, C, J, ct, bias):
     elif family == M.PLANE:
         _plane_row(row, a, b, param, k, y, R, C, J, ct, bias)
     elif family == M.GEAR:
-        _gear_row(row, a, b, param, k, R, C, J, ct, bias)
+        _gear_row(row, a, b, param, k, y, R, C, J, ct, bias)
     elif family == M.ROPE:
         _rope_row(row, a, b, param, k, C, J, ct, bias)
     elif family == M.CONTACT or family == M.CONTACT_SPHERES:

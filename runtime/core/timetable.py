@@ -95,13 +95,14 @@ class TimeTable:
 
         return self.add(M.KIN_WIDTH, produce)
 
-    def add_moving_vector(self, value, rate, accel) -> int:
-        """9 columns: a world vector of time, its first and second derivatives."""
+    def add_moving(self, value, rate, accel, size: int) -> int:
+        """3 size columns: a parameter of time (a world vector, size 3, or a number, size 1), its first and
+        second derivatives."""
         def produce(times):
-            return np.concatenate((tabulate(value, times, 3), tabulate(rate, times, 3), tabulate(accel, times, 3)),
-                                  axis=1)
+            return np.concatenate((tabulate(value, times, size), tabulate(rate, times, size),
+                                   tabulate(accel, times, size)), axis=1)
 
-        return self.add(9, produce)
+        return self.add(3 * size, produce)
 
     def add_load(self, force, torque) -> int:
         """6 columns: a load's force and torque of time."""

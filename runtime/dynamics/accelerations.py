@@ -53,6 +53,8 @@ def unconstrained(m, s, table, j, acc):
                 acc[b, c] = 0.0
     kin = m.kinematic
     for i in range(len(kin.body)):
+        if not kin.on[i]:
+            continue
         b, c = kin.body[i], kin.column[i]
         for e in range(3):
             acc[b, e] = table[j, c + M.KIN_A + e]

@@ -60,8 +60,26 @@ def tessellate(shape, plane_size: float = 10.0, folder: Path | None = None) -> T
     if kind == "mesh":
         path = Path(shape.file) if folder is None else Path(folder) / shape.file
         positions, triangles = read_mesh(path)
-        return _flat(positions * shape.scale, triangles)
+        # the file's origin sits at the shape's offset in the body frame (the centroid is the centre of mass)
+        return _flat(positions * shape.scale + np.asarray(shape.offset, float), triangles)
+    if kind == "compound":
+        return compound(shape, plane_size, folder)
     raise ValueError(f"shape: unknown type {kind!r}")
+
+
+def compound(shape, plane_size: float = 10.0, folder: Path | None = None) -> TriMesh:
+    """The parts of a compound body, each tessellated and placed in the body frame: p = offset + at + R p_part."""
+    from isaac_runtime.rotation import quat_to_matrix
+
+    positions, normals, triangles, count = [], [], [], 0
+    for part in shape.parts:
+        mesh = tessellate(part.shape, plane_size, folder)
+        R = quat_to_matrix(np.asarray(part.orientation, float))
+        positions.append(np.asarray(shape.offset, float) + np.asarray(part.position, float) + mesh.positions @ R.T)
+        normals.append(mesh.normals @ R.T)
+        triangles.append(mesh.triangles + count)
+        count += len(mesh.positions)
+    return TriMesh(np.vstack(positions), np.vstack(normals), np.vstack(triangles))
 
 
 def box(size) -> TriMesh:

@@ -107,7 +107,7 @@ class _Shapes:
             path = Path(shape.file) if self.folder is None else Path(self.folder) / shape.file
             self._meshes[shape.file] = geometry.read_mesh(path)
         vertices, triangles = self._meshes[shape.file]
-        return vertices * shape.scale, triangles
+        return vertices * shape.scale + np.asarray(shape.offset, float), triangles
 
 
 def _header(scene) -> str:
@@ -191,6 +191,14 @@ def _primitive(shape, shapes: _Shapes) -> list:
     if kind == "mesh":
         vertices, triangles = shapes.mesh(shape)
         return _points_polygons(vertices, triangles)
+    if kind == "compound":  # each part in its place: body frame = offset + at + R (part frame)
+        lines = []
+        for part in shape.parts:
+            place = geometry.matrices(np.asarray(shape.offset, float) + np.asarray(part.position, float),
+                                      np.asarray(part.orientation, float))
+            lines += ["TransformBegin", f"  ConcatTransform {_matrix(place)}"]
+            lines += ["  " + line for line in _primitive(part.shape, shapes)] + ["TransformEnd"]
+        return lines
     raise ValueError(f"shape: unknown type {kind!r}")
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from functools import lru_cache
 from pathlib import Path
 
@@ -63,17 +62,17 @@ class Journal:
 
 
 def store_outputs(folder: Path, task: Task, files: dict) -> str | None:
-    """Write a variant's files into folder/variants/<id>/ (whole: into a temporary name, then renamed)."""
+    """Write a variant's files into folder/variants/<id>/ as one set that replaces an earlier one whole
+    (runtime/outputset.py: written beside it, then swapped in; a kill leaves the old set or the new one)."""
+    from ..outputset import OutputSet
+
     if not files:
         return None
     target = outputs_folder(folder, task)
-    partial = target.with_name(f".{task.id}.partial")
-    shutil.rmtree(partial, ignore_errors=True)
-    partial.mkdir(parents=True)
-    for name, data in files.items():
-        (partial / name).write_bytes(data)
-    shutil.rmtree(target, ignore_errors=True)
-    os.replace(partial, target)
+    with OutputSet(target, "sweep") as staging:
+        for name, data in files.items():
+            (staging.path / name).write_bytes(data)
+        staging.commit([staging.path / name for name in files], variant=task.id)
     return target.as_posix()
 
 

@@ -4,7 +4,8 @@
 
 `viewer_data` is what the page draws: every body tessellated in its own frame (isaac_runtime.export.geometry),
 its colour, the trajectory's poses (float32, base64), the cameras and lights, and the sound as a data URL.
-`isaac watch` serves the same page live (serve.py) with `live: true`, and the page then fetches new data itself.
+`isaac watch` serves the same page live (serve.py) with `live: true`, and the page then fetches new data itself;
+`isaac live` serves its own page (render_live_html: live.html and live.js) with the same drawing (draw.js).
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ import numpy as np
 
 from ..export import geometry
 from ..outputs import write_atomic
+from .mechanism import gear_teeth, mechanism_data, with_teeth
 
 # above this many pose numbers (frames x bodies x 7) the viewer keeps every k-th frame: the page stays small
 MAX_POSE_VALUES = 4_000_000
@@ -49,6 +51,7 @@ def viewer_data(scene, arrays: dict, folder: Path | None = None, note: str = "")
     colors = geometry.scene_colors(scene)
     size = geometry.plane_size(position)
     bodies, problems = [], []
+    gears = gear_teeth(scene)
     for name in names:
         index = order[name]
         body = scene.bodies[index]
@@ -57,6 +60,8 @@ def viewer_data(scene, arrays: dict, folder: Path | None = None, note: str = "")
         except geometry.MeshFileError as error:
             problems.append(str(error))
             mesh = geometry.box((0.1, 0.1, 0.1))
+        if name in gears:
+            mesh = with_teeth(mesh, body.shape, gears[name])
         bodies.append(_body_data(body, mesh, colors[index]))
     if problems:
         note = "; ".join(([note] if note else []) + [f"drawn as a small box: {p}" for p in problems])
@@ -65,7 +70,7 @@ def viewer_data(scene, arrays: dict, folder: Path | None = None, note: str = "")
     return {
         "scene": scene.name, "start": scene.time.start, "end": scene.time.end, "frame_rate": scene.time.frame_rate,
         "cameras": cameras, "lights": [_light_data(light) for light in scene.lights], "bodies": bodies,
-        "links": _nail_links(scene, names),
+        **mechanism_data(scene, names, position),
         "time": _b64(time, np.float64), "position": _b64(position, np.float32),
         "orientation": _b64(orientation, np.float32), "frames": int(len(time)), "note": note,
         "audio": None, "live": False, "result": 0,
@@ -74,9 +79,18 @@ def viewer_data(scene, arrays: dict, folder: Path | None = None, note: str = "")
 
 def render_html(data: dict) -> str:
     """The page with its data: script and data inlined, so that it opens from disk with no network."""
+    return _page("template.html", ("draw.js", "viewer.js"), data)
+
+
+def render_live_html(data: dict) -> str:
+    """The page of `isaac live`: the same drawing, fed by the server's stream of poses (live.js)."""
+    return _page("live.html", ("draw.js", "live.js"), data)
+
+
+def _page(template_name: str, scripts: tuple, data: dict) -> str:
     folder = resources.files(__package__)
-    template = folder.joinpath("template.html").read_text(encoding="utf-8")
-    script = folder.joinpath("viewer.js").read_text(encoding="utf-8")
+    template = folder.joinpath(template_name).read_text(encoding="utf-8")
+    script = "\n".join(folder.joinpath(name).read_text(encoding="utf-8") for name in scripts)
     # `</` must not appear inside a <script> element: JSON allows the equivalent `<\/`
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     return (template.replace("/*ISAAC_TITLE*/", _html_escape(data["scene"]))
@@ -108,21 +122,6 @@ def _body_data(body, mesh: geometry.TriMesh, color) -> dict:
 def _light_data(light) -> dict:
     return {"name": light.name, "type": light.type, "position": list(light.position), "target": list(light.target),
             "intensity": light.intensity, "color": list(light.color), "cone": math.radians(30.0)}
-
-
-def _nail_links(scene, names: list) -> list:
-    """Nails, drawn as a rod from the body's centre to its nailed point while the constraint is active."""
-    row = {name: i for i, name in enumerate(names)}
-    links = []
-    for constraint in scene.constraints:
-        for term in constraint.terms:
-            target = getattr(term.param("target"), "value", None)  # a moving nail (a function of t) is not drawn
-            if term.family != "nail" or target is None or len(term.bodies) != 1 or term.bodies[0] not in row:
-                continue
-            links.append({"body": row[term.bodies[0]], "point": [float(v) for v in term.param("point")],
-                          "target": [float(v) for v in target], "start": constraint.start,
-                          "end": constraint.end if math.isfinite(constraint.end) else 1e300})
-    return links
 
 
 def _body_order(scene, names: list) -> dict:

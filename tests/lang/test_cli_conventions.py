@@ -196,7 +196,9 @@ def test_outputs_are_named_after_the_file_and_honour_the_umask(tmp_path, capsys,
         assert stat.S_IMODE(path.stat().st_mode) == 0o644, path
 
 
-def test_a_run_clears_what_it_owns_and_nothing_else(tmp_path, capsys):
+def test_a_run_replaces_its_own_files_and_keeps_the_users(tmp_path, capsys):
+    from isaac_runtime.outputset import MANIFEST
+
     out = tmp_path / "o"
     assert run_cli(capsys, "run", SCENES / "bar.isaac", "--out", out, "--until", "0.3", "--plots")[0] == 0
     assert (out / "audio.wav").is_file() and (out / "plots" / "spectrogram.png").is_file()
@@ -204,9 +206,10 @@ def test_a_run_clears_what_it_owns_and_nothing_else(tmp_path, capsys):
     (out / "plots" / "mine.png").write_text("mine")
     assert run_cli(capsys, "run", scene_file(tmp_path), "--out", out, "--until", "0.1", "--no-viewer")[0] == 0
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["events.json", "ir.json", "notes.txt", "plots", "report.json", "trajectory.npz"]
+    assert names == [MANIFEST, "events.json", "ir.json", "notes.txt", "plots", "report.json", "trajectory.npz"]
     assert sorted(p.name for p in (out / "plots").iterdir()) == ["mine.png"]
-    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+    assert (out / "notes.txt").read_text() == "mine"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries beside it
 
 
 def test_export_frames_that_select_nothing(tmp_path, capsys):

@@ -41,7 +41,7 @@ def model_of(families, n: int, bodies: M.Bodies | None = None) -> M.Model:
     """A model of n free bodies (or `bodies`) and the given constraint families, nothing else."""
     z = np.zeros(0, np.int64)
     cons = M.pack_constraints(constraint_plan(families), [])
-    return M.Model(n, free_bodies(n) if bodies is None else bodies, M.Kinematic(z, z),
+    return M.Model(n, free_bodies(n) if bodies is None else bodies, M.Kinematic(z, z, np.zeros(0, np.bool_)),
                    M.Springs(np.zeros((0, 2), np.int64), np.zeros((0, 2, 3)), np.zeros(0), np.zeros(0), np.zeros(0)),
                    M.Loads(z, np.zeros((0, 3)), z), cons, empty_wind_model(), 0, 0, M.no_shapes(n), M.no_pairs(), 0.0)
 

@@ -45,5 +45,6 @@ def test_the_settled_error_skips_the_windows():
 
 def test_the_check_of_a_report():
     report = {"constraint_error_settled": 0.5, "constraint_error_settled_time": 2.0}
-    assert checks.constraint_check(report, 0.1) == {"limit": 0.1, "value": 0.5, "time": 2.0, "ok": False}
+    assert checks.constraint_check(report, 0.1) == {"limit": 0.1, "value": 0.5, "time": 2.0, "ok": False,
+                                                    "constraints": []}
     assert checks.constraint_check(report, None)["ok"] and checks.constraint_check(report, 1.0)["ok"]

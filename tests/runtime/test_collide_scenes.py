@@ -154,7 +154,8 @@ def test_events_json_lists_every_impact(tmp_path):
     listed = [e for e in events if e["kind"] == "impact"]
     assert [round(e["time"], 4) for e in listed] == [0.4401, 0.8802, 1.1002]
     assert set(listed[0]) == {"time", "bodies", "point", "normal", "impulse", "tangential_speed", "normal_speed",
-                              "kind"}
+                              "kind", "parts"}
+    assert listed[0]["parts"] == [None, None]  # no compound bodies
 
 
 # ---- bar, stack, resting contact ---------------------------------------------------------------------------

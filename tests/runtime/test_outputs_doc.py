@@ -8,6 +8,7 @@ import numpy as np
 
 from isaac_lang.cli import main
 from isaac_runtime.outputs import OWNED_FILES, OWNED_PLOTS
+from isaac_runtime.outputset import MANIFEST
 
 ROOT = Path(__file__).resolve().parents[2]
 DOC = (ROOT / "docs" / "outputs.md").read_text(encoding="utf-8")
@@ -29,8 +30,8 @@ def test_every_output_file_and_field_is_documented(tmp_path, capsys):
     # collisions, contact, sound: every file and every field
     assert main(["run", str(ROOT / "scenes" / "bar.isaac"), "--out", str(out), "--until", "0.4", "--plots"]) == 0
     written = {p.name for p in out.iterdir()} | {f"plots/{p.name}" for p in (out / "plots").iterdir()}
-    assert written == set(OWNED_FILES) | {"plots"} | {f"plots/{name}" for name in OWNED_PLOTS}
-    for name in OWNED_FILES + OWNED_PLOTS:
+    assert written == set(OWNED_FILES) | {"plots", MANIFEST} | {f"plots/{name}" for name in OWNED_PLOTS}
+    for name in OWNED_FILES + OWNED_PLOTS + (MANIFEST,):
         assert f"{name}" in DOC, f"docs/outputs.md does not name {name}"
     undocumented = [k for k in set(keys(json.loads((out / "report.json").read_text()))) if f"`{k}`" not in DOC]
     assert not undocumented, f"report.json fields not in docs/outputs.md: {undocumented}"

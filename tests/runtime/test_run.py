@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from isaac_lang.cli import main
+from isaac_runtime.outputset import MANIFEST
 from isaac_runtime.simulation import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
@@ -19,8 +20,8 @@ def test_run_writes_the_contracted_files(tmp_path, capsys):
     out = tmp_path / "out"
     code = main(["run", str(SCENES / "selfassembly.isaac"), "--out", str(out), "--until", "1.5"])
     assert code == 0
-    assert sorted(p.name for p in out.iterdir()) == ["events.json", "ir.json", "report.json", "trajectory.npz",
-                                                        "viewer.html"]
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "events.json", "ir.json", "report.json",
+                                                        "trajectory.npz", "viewer.html"]
     with np.load(out / "trajectory.npz", allow_pickle=False) as data:
         T = len(data["time"])
         assert list(data["bodies"]) == ["a", "b"]
@@ -37,7 +38,8 @@ def test_run_writes_the_contracted_files(tmp_path, capsys):
     assert "constraints" in report["stages_run"] and "collisions" in report["stages_run"]
     assert json.loads((out / "events.json").read_text()) == []
     assert json.loads((out / "ir.json").read_text())["schema"] == "isaac-ir/1"
-    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary files left
+    assert not [p for p in out.iterdir() if p.name.startswith(".") and p.name != MANIFEST]  # no temporaries
+    assert not [p for p in out.parent.iterdir() if p.name.startswith(".")]  # beside it neither
 
 
 def test_run_options_override_the_scene(tmp_path):

@@ -197,7 +197,9 @@ def test_viewer_data_round_trips_the_trajectory():
     triangles = decode(bob["triangles"], "<u4")
     assert triangles.max() < len(vertices) and np.allclose(np.linalg.norm(vertices, axis=1), 0.05, rtol=1e-5)
     assert data["cameras"][0]["name"] == "main" and data["lights"][0]["type"] == "distant"
+    # the nail: its wire starts on the bob's surface, toward the nailed point
     assert data["links"] == [{"body": 0, "point": pytest.approx([-0.866025, 0.5, 0], abs=1e-6),
+                              "attach": pytest.approx([-0.0433013, 0.025, 0], abs=1e-6),
                               "target": [0.0, 1.0, 0.0], "start": 0.0, "end": 1e300}]
 
 

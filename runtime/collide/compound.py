@@ -1,0 +1,165 @@
+"""Narrow phase of pairs with a compound body: each part of one body against each part (or the shape) of the
+other, with the tests of narrow.py / boxes.py / meshes.py, at the part's world pose x_body + R_body offset,
+R_body turn (shapes.Elements).
+
+A contact keeps the conventions of narrow.py (point midway, normal from b toward a, depth), and body a and b are
+the bodies of the parts the test was given, in the order it wants them (a sphere part first against a box): one
+pair of bodies may so have contacts in both orders, each consistent on its own. Its feature names both parts
+(shapes.PART_SHIFT), so that a contact stays keyed to its part and its corner from one look to the next.
+
+Only part pairs whose boxes come within the margin are tested; a distance (margin inf) tests the part pairs in
+the order of their boxes' gap, a lower bound of their distance, and stops at the first gap beyond the nearest
+distance found.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..rotation import quat_to_matrix
+from .narrow import closed_form
+from .shapes import BOX, NONE, PART_BITS, PART_SHIFT, PLANE, Elements, boxes_of, empty_table, fill
+
+EMPTY = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64),
+         np.zeros(0, np.int64))
+
+
+def build_elements(scene, table, compounds: list, folders) -> Elements:
+    """The elements of a scene whose bodies `compounds` are made of parts; each compound's entry in the body
+    table becomes the box about its centre of mass that holds its parts."""
+    n = len(scene.bodies)
+    parts = [(i, k, part) for i in compounds for k, part in enumerate(scene.bodies[i].shape.parts)]
+    count = n + len(parts)
+    el = empty_table(count, table.meshes)  # the meshes list is shared: a mesh index means one mesh in both
+    for name in ("kind", "radius", "half", "half_length", "normal", "centre", "thin", "mesh"):
+        getattr(el, name)[:n] = getattr(table, name)
+    owner = np.concatenate([np.arange(n), np.array([i for i, _, _ in parts], np.int64)])
+    index = np.concatenate([np.full(n, -1, np.int64), np.array([k for _, k, _ in parts], np.int64)])
+    offset, turn = np.zeros((count, 3)), np.tile(np.eye(3), (count, 1, 1))
+    first, counts = np.zeros(n, np.int64), np.zeros(n, np.int64)
+    loaded = {}
+    for e, (i, k, part) in enumerate(parts, start=n):
+        fill(el, e, part.shape, folders, loaded=loaded)
+        offset[e] = np.asarray(scene.bodies[i].shape.offset, float) + np.asarray(part.position, float)
+        q = np.asarray(part.orientation, float)
+        turn[e] = quat_to_matrix(q / np.linalg.norm(q))
+        if k == 0:
+            first[i] = e
+        counts[i] += 1
+    elements = Elements(el, owner, index, offset, turn, first, counts, [p.name for _, _, p in parts])
+    for i in compounds:
+        mine = elements.of(i)
+        # the parts' boxes in the body frame, then the box about the centre of mass that holds them all
+        lo, hi = boxes_of(el, mine, offset[mine], turn[mine], 0.0)
+        el.kind[i] = NONE
+        table.kind[i], table.radius[i], table.half_length[i], table.centre[i] = BOX, 0.0, 0.0, 0.0
+        table.half[i] = np.maximum(np.abs(lo), np.abs(hi)).max(axis=0)
+        table.thin[i] = float(el.thin[mine].min())
+    return elements
+
+
+def encode(local, part_a, part_b):
+    """The feature of a contact of part part_a of body a (-1: a itself) and part_b of body b."""
+    return (np.asarray(local, np.int64) | ((part_a + 1) << PART_SHIFT) | ((part_b + 1) << (PART_SHIFT + PART_BITS)))
+
+
+def contact_elements(elements: Elements | None, a, b, feature) -> tuple:
+    """(ea, eb) (k,): the elements (parts, or the bodies themselves) of contacts of bodies a, b."""
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    if elements is None:
+        return a, b
+    from .shapes import part_of
+
+    pa, pb = part_of(feature, 0), part_of(feature, 1)
+    ea = np.where(pa >= 0, elements.first[a] + pa, a)
+    eb = np.where(pb >= 0, elements.first[b] + pb, b)
+    return ea, eb
+
+
+class CompoundPairs:
+    """The narrow phase of the pairs that involve a compound body; fcl: meshes.FclPairs over the elements (for
+    part pairs without a closed form), or None."""
+
+    def __init__(self, elements: Elements, fcl=None):
+        self.el, self.fcl = elements, fcl
+        count = len(elements.owner)
+        self.X, self.RX = np.zeros((count, 3)), np.tile(np.eye(3), (count, 1, 1))  # element poses (scratch)
+
+    def _pose(self, body: int, x, R) -> np.ndarray:
+        """The world poses of a body's elements into X, RX; returns the elements."""
+        mine = self.el.of(body)
+        self.X[mine] = x[body] + self.el.offset[mine] @ R[body].T
+        self.RX[mine] = R[body] @ self.el.turn[mine]
+        return mine
+
+    def _candidates(self, i, j, x, R, margin):
+        """Element pairs (ea, eb) of bodies i, j with their boxes' gap (a lower bound of their distance)."""
+        ei, ej = self._pose(i, x, R), self._pose(j, x, R)
+        table = self.el.table
+        grow = 0.0 if not math.isfinite(margin) else margin
+        lo_i, hi_i = boxes_of(table, ei, self.X[ei], self.RX[ei], grow)
+        lo_j, hi_j = boxes_of(table, ej, self.X[ej], self.RX[ej], grow)
+        with np.errstate(invalid="ignore"):  # a plane's box is infinite (its gap is set below)
+            gap = np.maximum(lo_j[None] - hi_i[:, None], lo_i[:, None] - hi_j[None]).max(axis=2)
+        gap[(table.kind[ei] == PLANE)[:, None] | (table.kind[ej] == PLANE)[None]] = -np.inf
+        a, b = np.nonzero(gap <= 0.0) if math.isfinite(margin) else np.indices(gap.shape).reshape(2, -1)
+        return ei[a], ej[b], gap[a, b]
+
+    def _test(self, ea: int, eb: int, margin: float):
+        """One element pair: (points, normals, depths, features, body a, body b), features naming the parts."""
+        table = self.el.table
+        test = closed_form(table.kind[ea], table.kind[eb])
+        if test is None:
+            found, (a, b) = self.fcl.contacts(ea, eb, self.X, self.RX, margin), (ea, eb)
+        else:
+            function, swapped = test
+            a, b = (eb, ea) if swapped else (ea, eb)
+            found = function(table, a, b, self.X, self.RX, margin)
+        points, normals, depths, features = found
+        k = len(depths)
+        feature = encode(features, self.el.index[a], self.el.index[b])
+        return (points, normals, depths, feature, np.full(k, self.el.owner[a], np.int64),
+                np.full(k, self.el.owner[b], np.int64))
+
+    def contacts(self, i: int, j: int, x, R, margin: float):
+        """Contacts of bodies i and j: (points, normals, depths, features, a (k,), b (k,))."""
+        # with margin inf, every part pair (each test then gives its closest feature: what a distance needs)
+        found = [self._test(int(a), int(b), margin) for a, b, _ in zip(*self._candidates(i, j, x, R, margin))]
+        found = [f for f in found if len(f[2])]
+        if not found:
+            return EMPTY
+        return tuple(np.concatenate(column) for column in zip(*found))
+
+    def distance(self, i: int, j: int, x, R, known=frozenset()) -> float:
+        """Signed distance of bodies i and j (negative: interpenetrating); with `known`, of their other features."""
+        ea, eb, gap = self._candidates(i, j, x, R, math.inf)
+        best = math.inf
+        for k in np.argsort(gap, kind="stable"):
+            if gap[k] > best:
+                break  # no part pair further on can come nearer than its boxes' gap
+            _, _, depths, features, _, _ = self._test(int(ea[k]), int(eb[k]), math.inf)
+            if known:
+                depths = depths[[int(f) not in known for f in features]]
+            if len(depths):
+                best = min(best, -float(np.max(depths)))
+        return best
+
+
+def fcl_elements(scene, table, elements: Elements, touchable) -> np.ndarray:
+    """The elements that python-fcl must hold: those of a part pair without a closed form, in the pairs of bodies
+    `touchable` ((k,2), which can touch) that involve a compound body."""
+    from .narrow import needs_fcl
+
+    kinds = elements.table.kind
+    needed = set()
+    for i, j in np.asarray(touchable, np.int64).reshape(-1, 2):
+        if not (table.compound(int(i)) or table.compound(int(j))):
+            continue
+        ei, ej = elements.of(int(i)), elements.of(int(j))
+        for a in ei:
+            for b in ej:
+                if needs_fcl(kinds[a], kinds[b]):
+                    needed |= {int(a), int(b)}
+    return np.array(sorted(needed), np.int64)
+
