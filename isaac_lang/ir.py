@@ -185,8 +185,8 @@ class Force:
 class Wind:
     name: str
     type: str  # uniform | source
-    origin: Vec3 | None  # source point
-    direction: Vec3  # unit, toward where the air goes
+    origin: Vec3 | E.Expr | None  # source point; an expression of t when the source moves
+    direction: Vec3 | E.Expr  # unit, toward where the air goes; an expression of t (made unit at each instant)
     speed: E.Expr  # m/s, may use t, envelope("file"), mic()
     falloff: str  # none | inverse | inverse_square
     reference_distance: float  # m: the distance at which speed is as given

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import sys
 import weakref
 
 import numpy as np
@@ -13,9 +14,11 @@ from . import mass as M
 from . import units as U
 from .diagnostics import Reporter, SceneError, SourcePos, did_you_mean
 from .expand import Decl, Expansion
+from .files import refused_assets
+from .meshfile import mesh_problem
 from .lower_constraints import ConstraintLowerer
 from .origins import setting_origins
-from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, is_table, ref_name
+from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, is_table, ref_name, written_with
 from .props import Props
 from .syntax import KEYWORDS
 
@@ -92,7 +95,7 @@ class SceneLowerer:
         sounds = self._each(by_kind["sound"], lambda d: self._sound(d, wind_names))
         exclusions = self._each(by_kind["exclude"], self._exclusion)
         self.reporter.raise_if_any()
-        return ir.Scene(
+        scene = ir.Scene(
             name=name, file=self.root_file, time=settings["time"], gravity=settings["gravity"],
             seed=settings["seed"], solver=solver, cameras=tuple(cameras), lights=tuple(lights),
             materials=tuple(self.materials.values()), bodies=tuple(self.bodies.values()),
@@ -101,6 +104,16 @@ class SceneLowerer:
             parameters=tuple(sorted((k, _plain(v.node)) for k, v in self.x.parameters.items())),
             air_density=settings["air"], origins=setting_origins(self.x),
         )
+        self._confined_files(scene)
+        return scene
+
+    def _confined_files(self, scene: ir.Scene) -> None:
+        """The textures and recordings the scene names: refused at their declaration before anything opens them
+        when they are not files it may read (files.refused_assets; meshes: _shape)."""
+        for asset, refused in refused_assets(scene, self.x.folder, self.x.confinement):
+            self.reporter.error(f"cannot read `{asset.name}`: {refused.message}", SourcePos.parse(asset.source),
+                                refused.hint)
+        self.reporter.raise_if_any()
 
     def _each(self, decls, build) -> list:
         out, seen = [], {}  # name -> its first declaration
@@ -164,8 +177,7 @@ class SceneLowerer:
             "listener": ir.Listener(listener_props.vector("at", U.LENGTH, (0.0, 0.0, 0.0)),
                                     listener_props.scalar("gain", U.DIMENSIONLESS, 1.0),
                                     listener_props.boolean("delay", False)),
-            "audio": ir.Audio(audio_props.scalar("rate", U.FREQUENCY, 44100.0, bare_ok=True),
-                              audio_props.integer("channels", 1, minimum=1)),
+            "audio": ir.Audio(self._audio_rate(audio_props), audio_props.integer("channels", 1, minimum=1)),
         }
 
     def _solver(self) -> ir.SolverOptions:
@@ -219,18 +231,39 @@ class SceneLowerer:
         density = props.scalar("density", U.DENSITY)
         self._positive(density, "density", props)
         rayleigh = props.vector("rayleigh", U.DIMENSIONLESS, size=2)
+        friction, restitution = (props.scalar(name, U.DIMENSIONLESS, 0.5) for name in ("friction", "restitution"))
+        self._contact_coefficients(friction, restitution, props)
         material = ir.Material(
-            decl.name, density, props.scalar("friction", U.DIMENSIONLESS, 0.5),
-            props.scalar("restitution", U.DIMENSIONLESS, 0.5), props.scalar("young", U.PRESSURE),
+            decl.name, density, friction, restitution, props.scalar("young", U.PRESSURE),
             props.scalar("poisson", U.DIMENSIONLESS, 0.3), props.scalar("loss", U.DIMENSIONLESS), rayleigh,
             props.scalar("roughness", U.LENGTH, 1e-5), props.string("texture"), str(decl.lowerer.pos(decl.tree)),
         )
         self.materials[decl.name] = material
         return material
 
+    def _contact_coefficients(self, friction: float, restitution: float, props: Props) -> None:
+        """Restitution above 1 makes energy at each bounce, below 0 lets it go through; friction below 0 pushes."""
+        if not 0.0 <= restitution <= 1.0:
+            raise props.lowerer.fail(f"`restitution` must be between 0 and 1, got {restitution:g}",
+                                     props.node("restitution"), "0 is a plastic impact (no bounce), 1 an elastic "
+                                     "one (the speed kept); above 1 each bounce would make energy")
+        if not friction >= 0.0:
+            raise props.lowerer.fail(f"`friction` must be 0 or more, got {friction:g}", props.node("friction"),
+                                     "the Coulomb coefficient: 0 is frictionless ice, about 0.4 steel on steel")
+
+    def _audio_rate(self, props: Props) -> float:
+        rate = props.scalar("rate", U.FREQUENCY, 44100.0, bare_ok=True)
+        if not rate >= 1.0:  # audio.wav holds a whole number of samples per second
+            raise props.lowerer.fail(f"the audio rate must be at least 1 Hz, got {rate:g} Hz", props.node("rate"))
+        return rate
+
     def _positive(self, value, name: str, props: Props) -> None:
         if value is not None and value <= 0:
             raise props.lowerer.fail(f"`{name}` must be positive", props.node(name))
+        # below 2.2e-308 a float is subnormal: its digits are gone, and 1 / value overflows
+        if value is not None and value < sys.float_info.min:
+            raise props.lowerer.fail(f"`{name}` is {value:g}, too small to compute with", props.node(name),
+                                     "in SI units it must be at least 2.2e-308; is the exponent's sign right?")
 
     def _body(self, decl: Decl) -> ir.Body:
         words = [t for t in decl.tree.children[1:-1]]
@@ -249,10 +282,12 @@ class SceneLowerer:
         kinematic = motion == "kinematic" or window is not None
         position = props.vector("at", U.LENGTH, E.Const((0.0, 0.0, 0.0)), time=kinematic)
         orientation = self._orientation(props, kinematic)
-        if shape is None:  # a body made of parts (docs/compound.md)
-            mass, inertia, shape = C.CompoundLowerer(self, decl, props).lower(motion, material)
-        else:
-            mass, inertia, shape = self._mass_properties(shape, motion, props, material, decl)
+        try:  # a body made of parts (docs/compound.md), or of one shape
+            mass, inertia, shape = C.CompoundLowerer(self, decl, props).lower(motion, material) if shape is None \
+                else self._mass_properties(shape, motion, props, material, decl)
+        except OverflowError:  # a volume or a moment beyond 1.8e308
+            mass, inertia = math.inf, None
+        self._computable(mass, inertia, props, decl)
         position = C.placed(position, orientation, shape.offset)  # `at` places the shape's origin
         body = ir.Body(
             name=decl.name, shape=shape, motion=motion, mass=mass, inertia=inertia,
@@ -270,6 +305,19 @@ class SceneLowerer:
         )
         self.bodies[decl.name] = body
         return body
+
+    def _computable(self, mass, inertia, props: Props, decl: Decl) -> None:
+        """A mass and principal moments the step can divide by (mass.py: finite, and not subnormal)."""
+        moments, mass_ok = M.principal_moments(inertia), mass is None or M.computable([mass])
+        if mass_ok and M.computable(moments):
+            return
+        culprits = ("radius", "size", "length", "file", "scale") if mass_ok else ("mass", "density", "radius", "size")
+        where = next((props.node(n) for n in culprits if props.has(n)), decl.tree.children[0])
+        told = f"mass {mass:g} kg" + (f" and principal moments {', '.join(f'{m:g}' for m in moments)} kg*m2"
+                                      if moments else "")
+        raise decl.lowerer.fail(f"body `{decl.name}` comes out with {told}: not numbers the step can divide by",
+                                where, "each must be finite and above 2.2e-308 in SI units: is a size or a "
+                                "density far too small or too large?")
 
     def _body_words(self, words, decl: Decl, pieces=()):
         shape_word, motion = None, "dynamic"
@@ -311,16 +359,21 @@ class SceneLowerer:
         size = props.vector("size", U.LENGTH)
         for name, value in (("radius", radius), ("length", length)):
             self._positive(value, name, props)
-        if size is not None and min(size) <= 0:
+        if size is not None and not min(size) >= sys.float_info.min:  # below it: subnormal, its digits gone
             raise decl.lowerer.fail("a box's edges must be positive", props.node("size"))
         normal = props.vector("normal", U.DIMENSIONLESS, (0.0, 1.0, 0.0) if kind == "plane" else None)
         if normal is not None:
             normal = _unit(normal, props, "normal")
         file = props.string("file")
-        if file is not None:
+        scale = props.scalar("scale", U.DIMENSIONLESS, 1.0)
+        self._positive(scale, "scale", props)
+        if file is not None:  # read and validated where it is named (meshfile.py); a missing one: assets.py
             file = self._asset(file, props, "file")
-        return ir.Shape(kind, radius=radius, length=length, size=size, normal=normal, file=file,
-                        scale=props.scalar("scale", U.DIMENSIONLESS, 1.0))
+            problem = mesh_problem(file, self.x.folder, self.x.confinement)
+            if problem is not None:
+                raise props.lowerer.fail(f"cannot use the mesh file `{file}`: {problem[0]}", props.node("file"),
+                                         problem[1])
+        return ir.Shape(kind, radius=radius, length=length, size=size, normal=normal, file=file, scale=scale)
 
     def _asset(self, relative: str, props: Props, name: str) -> str:
         """A file the scene names, relative to the file that names it; it must exist."""
@@ -393,13 +446,15 @@ class SceneLowerer:
 
     def _wind(self, decl: Decl) -> ir.Wind:
         props = Props(decl.tree.children[1], WIND_PROPS, f"wind `{decl.name}`", decl.lowerer, decl.scope)
-        origin = props.vector("from", U.LENGTH)
-        direction = props.vector("toward", U.DIMENSIONLESS) if origin is not None else props.vector(
-            "direction", U.DIMENSIONLESS)
+        # a source's point and a wind's direction may follow t (docs/wind.md): tuples when they do not
+        origin = _constant_or_path(props.vector("from", U.LENGTH, time=True))
+        aim = "toward" if origin is not None else "direction"
+        direction = _constant_or_path(props.vector(aim, U.DIMENSIONLESS, time=True))
         if direction is None:
             raise decl.lowerer.fail(f"wind `{decl.name}` needs a `direction` (or `from` and `toward`)",
                                     decl.tree.children[0])
-        direction = _unit(direction, props, "toward" if origin is not None else "direction")
+        direction = _unit(direction, props, aim) if isinstance(direction, tuple) else _never_zero(direction,
+                                                                                                 props, aim)
         speed = props.scalar("speed", U.VELOCITY, E.Const(1.0), time=True, signals=True)
         return ir.Wind(
             decl.name, "source" if origin is not None else "uniform", origin, direction, _as_expr(speed),
@@ -426,9 +481,13 @@ class SceneLowerer:
     def _gain(self, value, props: Props) -> float:
         node = props.lowerer.coerce(value, U.DIMENSIONLESS, "`gain`", props.node("gain"))
         number = props._constant(node, "gain")
-        text = str(props.node("gain"))
-        # "-6 dB" reads as decibels; a plain number is a linear factor
-        return 10.0 ** (number / 20.0) if "dB" in text else number
+        if not written_with(props.node("gain"), "dB"):  # a plain number is a linear factor
+            return number
+        # "-6 dB" reads as decibels: g = 10^(dB / 20)
+        if number > 6000.0:  # 10^300: far past any loudness, and 10^(dB/20) overflows from 6165 dB
+            raise props.lowerer.fail(f"a gain of {number:g} dB is too large to compute with (at most 6000 dB)",
+                                     props.node("gain"), "0 dB keeps the level, -6 dB halves it, +6 dB doubles it")
+        return 10.0 ** (number / 20.0)
 
     def _exclusion(self, decl: Decl) -> ir.Exclusion:
         from lark import Tree
@@ -513,6 +572,24 @@ def _components(node: E.Expr):
     if isinstance(node, E.Vec):
         return list(node.items)
     return [E.Call("dot", (node, E.Const(axis))) for axis in ((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0))]
+
+
+def _constant_or_path(node):
+    """A vector property lowered with time allowed: its tuple when it is constant, else its expression of t."""
+    if node is None or not isinstance(node, E.Const):
+        return node
+    return tuple(float(v) for v in node.value)
+
+
+def _never_zero(node: E.Expr, props: Props, name: str) -> E.Expr:
+    """A direction that follows t is made a unit vector at each instant; it must not pass through zero (checked
+    over the first minute)."""
+    for t in np.linspace(0.0, 60.0, 241):
+        length = float(np.linalg.norm(E.evaluate(node, {"t": float(t)})))
+        if not length > 1e-12 or not math.isfinite(length):
+            raise props.lowerer.fail(f"`{name}` must not be the zero vector (it is {length:.3g} long at t = {t:g} s)",
+                                     props.node(name), "a direction of time, e.g. `(cos(t), 0, sin(t))`")
+    return node
 
 
 def _unit(vector, props: Props, name: str) -> tuple:

@@ -7,6 +7,7 @@ flat face (parallel-axis theorem).
 from __future__ import annotations
 
 import math
+import sys
 
 
 def volume(shape) -> float | None:
@@ -54,6 +55,22 @@ def _capsule_inertia(r: float, h: float, mass: float) -> tuple:
     hemi = (83.0 / 320.0) * m_hemi * r * r + m_hemi * offset**2
     side = m_cyl * (3 * r * r + h * h) / 12.0 + 2 * hemi
     return (side, side, axial)
+
+
+def principal_moments(inertia) -> list:
+    """The principal moments of an inertia tensor (3x3, symmetric); [] for none, [inf] when it is not finite."""
+    import numpy as np
+
+    if inertia is None:
+        return []
+    tensor = np.asarray(inertia, float)
+    return [float(m) for m in np.linalg.eigvalsh(tensor)] if np.all(np.isfinite(tensor)) else [math.inf]
+
+
+def computable(values) -> bool:
+    """Masses or moments the step can divide by: finite, and at least the smallest normal double (2.2e-308;
+    below it a number is subnormal, its digits gone, and one over it overflows)."""
+    return all(math.isfinite(v) and v >= sys.float_info.min for v in values)
 
 
 def diagonal(moments: tuple) -> tuple:

@@ -34,7 +34,7 @@ from .contacts import ContactSet
 from .events import EventLog
 from .narrow import closed_form
 from .pairs import BroadPhase, is_excluded, pair_keys
-from .shapes import SPHERE, reach
+from .shapes import PLANE, SPHERE, reach
 from .response import Bodies, Contacts, Joints, Response, contact_rows, row_velocity
 
 # an impact is rewound to its time when the bodies interpenetrate by more than this at the end of the step, m
@@ -246,8 +246,8 @@ class Collider:
         kind = self.cp.table.kind
         for p in touching.tolist():
             i, j = int(pairs.a[p]), int(pairs.b[p])
-            if kind[i] == SPHERE and kind[j] == SPHERE:
-                continue  # nothing new comes from turning
+            if {kind[i], kind[j]} <= {SPHERE, PLANE}:
+                continue  # a sphere on a sphere or a plane: nothing new comes from turning (it rolls on its rows)
             gap = self.distance(i, j, s.x, R, self._known_features(i, j))
             arm = max(self.reach[i], self.reach[j], 1e-300)
             pairs.turn[p] = min(PAIR_TURN, max(gap, 0.0) / arm + MIN_TURN, self.cp.margin / arm)

@@ -87,13 +87,14 @@ class CompiledPlan:
         return drivers
 
     def _wind(self, plan):
-        from ..wind.kernels import empty_wind_model, speeds_table, wind_model
+        from ..wind.kernels import empty_wind_model, wind_model, wind_table
 
         wind = plan.forces.wind
         if wind is None:
             return empty_wind_model(), 0, 0
-        count = len(wind.fields.names)
-        column = self.table.add(count, lambda times: speeds_table(wind, times))
+        # per wind: its speed, its source point (3) and its direction (3), all of t
+        count = 7 * len(wind.fields.names)
+        column = self.table.add(count, lambda times: wind_table(wind, times))
         return wind_model(wind), column, count
 
     def _collisions(self, plan) -> tuple:
@@ -107,12 +108,14 @@ class CompiledPlan:
                           np.ascontiguousarray(np.nan_to_num(pad(table.half), posinf=1e300)), pad(table.half_length),
                           pad(table.normal), pad(table.centre))
         a, b = candidate_pairs(cp, plan.dynamic)
-        round_ = (table.kind[a] == M.SHAPE_SPHERE) & (table.kind[b] == M.SHAPE_SPHERE)
+        # a sphere on a sphere or on a plane: the one point of contact rolls with its rows, turning brings nothing
+        round_ = np.isin(table.kind[a], (M.SHAPE_SPHERE, M.SHAPE_PLANE)) & np.isin(table.kind[b], (M.SHAPE_SPHERE,
+                                                                                                   M.SHAPE_PLANE))
         from ..collide.shapes import reach
 
         arm = np.maximum(np.maximum(reach(table)[a], reach(table)[b]), 1e-300)
         turn = np.minimum(PAIR_TURN, cp.margin / arm)
-        turn = np.where(round_, 10.0, turn)  # two spheres: nothing new comes from turning
+        turn = np.where(round_, 10.0, turn)
         relative = np.tile([1.0, 0.0, 0.0, 0.0], (len(a), 1))
         return shapes, M.Pairs(a, b, np.zeros(len(a), np.int64), relative, turn), float(cp.margin)
 

@@ -262,7 +262,14 @@ def _number(v) -> float | None:
 
 
 def _vector(v) -> list:
-    return [float(c) for c in _value(v)]
+    """A vector parameter as drawn: its value, or where an expression of t puts it at t = 0 (a moving nail's
+    target, a turning plane's normal: the page draws the joint where it starts)."""
+    from isaac_lang import expr as E
+
+    value = _value(v)
+    if isinstance(value, E.Expr):
+        value = E.evaluate(value, {"t": 0.0})
+    return [float(c) for c in value]
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

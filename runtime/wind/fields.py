@@ -10,6 +10,8 @@ A source wind blows radially from its point o, inside a cone of half-angle `spre
 
 Turbulence I adds gusts u' = I |u| G(x, t) (turbulence.py): they scale with the local wind, so still air stays
 still. s(t) is the wind's `speed` expression, which may call envelope(...), mic(), noise(...), gust(...).
+A source's point o and a wind's direction d may be expressions of t (a moving source, a turning fan): d is made
+a unit vector at each instant, d = d(t) / |d(t)|.
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from isaac_lang import expr as E
 from isaac_lang import ir
 
 from .speed import SpeedOfTime
@@ -36,8 +39,8 @@ class WindFields:
 
     names: list  # (m,)
     is_source: np.ndarray  # (m,) bool: blows from a point
-    origin: np.ndarray  # (m,3) source points (0 for uniform winds)
-    direction: np.ndarray  # (m,3) unit
+    origin: np.ndarray  # (m,3) source points (0 for uniform winds); at t = 0 for a moving one
+    direction: np.ndarray  # (m,3) unit; at t = 0 for a turning one
     power: np.ndarray  # (m,) falloff exponent p
     reference: np.ndarray  # (m,) m, r0
     spread: np.ndarray  # (m,) rad
@@ -45,10 +48,14 @@ class WindFields:
     speed: list  # (m,) expressions of t, m/s
     functions: list  # (m,) signal functions for E.evaluate
     gusts: list  # (m,) GustField or None
+    paths: list = None  # (m,) (origin expression or None, direction expression or None): the winds that move
     speed_of_time: list = field(init=False)  # (m,) SpeedOfTime: `speed` compiled once
 
     def __post_init__(self):
         self.speed_of_time = [SpeedOfTime(s, f) for s, f in zip(self.speed, self.functions)]
+        if self.paths is None:
+            self.paths = [(None, None)] * len(self.names)
+        self.moves = [o is not None or d is not None for o, d in self.paths]
         # the same numbers as Python floats and ranges, for the per-call path (no numpy scalar per use)
         self._every_wind = range(len(self.names))
         self._blows_from_a_point = [bool(b) for b in self.is_source]
@@ -63,6 +70,16 @@ class WindFields:
     def speed_at(self, w: int, t: float) -> float:
         """s(t) of wind w (m/s), from its compiled expression."""
         return self.speed_of_time[w](t)
+
+    def pose_at(self, w: int, t: float) -> tuple:
+        """(o (3,), d (3,) unit) of wind w at time t: its expressions where it moves, its constants elsewhere."""
+        origin, direction = self.paths[w]
+        o = self.origin[w] if origin is None else np.asarray(E.evaluate(origin, {"t": float(t)}), float)
+        if direction is None:
+            return o, self.direction[w]
+        d = np.asarray(E.evaluate(direction, {"t": float(t)}), float)
+        # d = d(t) / |d(t)|
+        return o, d / np.sqrt(d @ d)
 
     def velocity(self, x: np.ndarray, t: float, only: int | None = None) -> np.ndarray:
         """(k,3) air velocity at points x (k,3): the sum of the winds (or wind `only`). A new array."""
@@ -96,12 +113,13 @@ class WindFields:
     def _uniform(self, w: int, x: np.ndarray, s: float, t: float) -> np.ndarray:
         """u = s d + I |s d| G(x, t) at points x (k,3)."""
         direction_rows, mean = self._rows_for(len(x))
+        rows = direction_rows[w] if not self.moves[w] else np.repeat(self.pose_at(w, t)[1][None, :], len(x), 0)
         # u = s d at every point
         if self.gusts[w] is None:
-            return np.multiply(direction_rows[w], s)
-        np.multiply(direction_rows[w], s, mean)
+            return np.multiply(rows, s)
+        np.multiply(rows, s, mean)
         # u' = I |u| G(x, t), added to the mean
-        _, scale = self._uniform_mean(w, s)
+        _, scale = self._uniform_mean(w, s, t)
         u = self.gusts[w](x, t)
         np.multiply(u, scale, u)
         np.add(u, mean, u)
@@ -118,17 +136,17 @@ class WindFields:
 
     def _uniform_at_one_point(self, w: int, x: np.ndarray, s: float, t: float) -> tuple:
         """u = s d + I |s d| G(x, t) at one point x (1,3), three floats."""
-        mean, scale = self._uniform_mean(w, s)
+        mean, scale = self._uniform_mean(w, s, t)
         if scale is None:
             return mean
         # u' = I |u| G(x, t), added to the mean
         g0, g1, g2 = self.gusts[w].at_one_point(x, t)
         return mean[0] + scale * g0, mean[1] + scale * g1, mean[2] + scale * g2
 
-    def _uniform_mean(self, w: int, s: float) -> tuple:
+    def _uniform_mean(self, w: int, s: float, t: float) -> tuple:
         """A uniform wind's mean u = s d (three floats: the same at every point) and its gusts' scale I |u|
         (None without gusts)."""
-        d0, d1, d2 = self._direction_floats[w]
+        d0, d1, d2 = self._direction_floats[w] if not self.moves[w] else self.pose_at(w, t)[1].tolist()
         # u = s d
         mean = (s * d0, s * d1, s * d2)
         if self.gusts[w] is None:
@@ -139,15 +157,15 @@ class WindFields:
 
     def _source(self, w: int, x: np.ndarray, s: float, t: float) -> np.ndarray:
         """u = s f(|r|) c(theta) e + I |u| G(x, t)."""
-        u = self._source_mean(w, x, s)
+        u = self._source_mean(w, x, s, t)
         if self.gusts[w] is not None:
             # u' = I |u| G(x, t)
             u += self.turbulence[w] * np.sqrt(np.einsum("ij,ij->i", u, u))[:, None] * self.gusts[w](x, t)
         return u
 
-    def _source_mean(self, w: int, x: np.ndarray, s: float) -> np.ndarray:
-        d = self.direction[w]
-        r = x - self.origin[w]
+    def _source_mean(self, w: int, x: np.ndarray, s: float, t: float) -> np.ndarray:
+        o, d = self.pose_at(w, t) if self.moves[w] else (self.origin[w], self.direction[w])
+        r = x - o
         dist = np.sqrt(np.einsum("ij,ij->i", r, r))
         e = r / np.maximum(dist, 1e-300)[:, None]
         if not dist.all():
@@ -179,9 +197,9 @@ def compile_fields(winds, functions: list, seed: int) -> WindFields:
     return WindFields(
         names=[wind.name for wind in winds],
         is_source=np.array([wind.type == "source" for wind in winds], dtype=bool),
-        origin=np.array([wind.origin if wind.origin is not None else (0.0, 0.0, 0.0) for wind in winds],
+        origin=np.array([_at_start(wind.origin) if wind.origin is not None else (0.0, 0.0, 0.0) for wind in winds],
                         float).reshape(m, 3),
-        direction=np.array([wind.direction for wind in winds], float).reshape(m, 3),
+        direction=np.array([_direction_at_start(wind.direction) for wind in winds], float).reshape(m, 3),
         power=np.array([FALLOFF_POWER[wind.falloff] for wind in winds]),
         reference=np.array([wind.reference_distance for wind in winds], float),
         spread=np.array([wind.spread for wind in winds], float),
@@ -189,7 +207,26 @@ def compile_fields(winds, functions: list, seed: int) -> WindFields:
         speed=[wind.speed for wind in winds],
         functions=functions,
         gusts=gusts,
+        paths=[(_path(wind.origin), _path(wind.direction)) for wind in winds],
     )
+
+
+def _path(value):
+    """The expression of a wind's point or direction that follows t, or None for a constant."""
+    return value if isinstance(value, E.Expr) else None
+
+
+def _at_start(value):
+    """A constant, or an expression of t at t = 0."""
+    return E.evaluate(value, {"t": 0.0}) if isinstance(value, E.Expr) else value
+
+
+def _direction_at_start(direction):
+    """A constant direction as lowered (already unit), or d(0) / |d(0)| of one that follows t."""
+    if not isinstance(direction, E.Expr):
+        return direction
+    d = np.asarray(E.evaluate(direction, {"t": 0.0}), float)
+    return d / np.sqrt(d @ d)
 
 
 def _wind_seed(seed: int, name: str) -> int:

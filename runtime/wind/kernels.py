@@ -4,6 +4,8 @@ calls many steps at a time, with no Python per force evaluation (PHYSICS.md sect
     WindModel          the winds and the bodies in them, as plain arrays: one compiled signature for every scene
     wind_model(wind)   built from a WindPlan (which stays the reference); empty_wind_model() without a wind
     speeds_table       s_w(t) of every wind at the times of a chunk of steps (Python: the speed expressions)
+    wind_table         the same, followed by the source points o_w(t) and the directions d_w(t) (what the step
+                       reads: a wind that moves is tabulated like its speed)
     air_velocity       u(x, t) at points, the sum of the winds (the audio graph's field)
     wind_drag          force model:      force, torque += F, tau
     wind_relax         procedural model: force <- phi (force + F), torque <- phi_w (torque + tau)
@@ -179,6 +181,34 @@ def speeds_table(wind, times) -> np.ndarray:
     return table
 
 
+def wind_table(wind, times) -> np.ndarray:
+    """(G, 7m): speeds_table's s_w(t), then o_w(t) (3 per wind), then the unit d_w(t) (3 per wind), at each of
+    the G times; a wind that does not move repeats its constants."""
+    times = np.ascontiguousarray(times, dtype=float).reshape(-1)
+    fields = wind.fields
+    m = len(fields.names)
+    origins = np.repeat(fields.origin.reshape(1, 3 * m), len(times), axis=0)
+    directions = np.repeat(fields.direction.reshape(1, 3 * m), len(times), axis=0)
+    for w, (origin, direction) in enumerate(fields.paths):
+        if origin is not None:
+            origins[:, 3 * w:3 * w + 3] = _vectors_of_time(origin, times)
+        if direction is not None:
+            d = _vectors_of_time(direction, times)
+            # d = d(t) / |d(t)|
+            directions[:, 3 * w:3 * w + 3] = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
+    return np.hstack((speeds_table(wind, times), origins, directions))
+
+
+def _vectors_of_time(node, times: np.ndarray) -> np.ndarray:
+    """(G, 3) a vector expression of t at each time (one vectorized evaluation when it takes one)."""
+    try:
+        value = E.evaluate(node, {"t": times})
+        return np.ascontiguousarray(np.stack([np.broadcast_to(np.asarray(c, float), times.shape) for c in value],
+                                             axis=1))
+    except (E.EvaluationError, ValueError, TypeError):
+        return np.array([np.asarray(E.evaluate(node, {"t": float(t)}), float) for t in times]).reshape(-1, 3)
+
+
 def _speeds_at_once(fields, w: int, times: np.ndarray):
     """s_w at all the times from one vectorized evaluation, or None when the expression does not take an array
     of times (a signal function that wants a float argument) or disagrees with speed_at at either end."""
@@ -293,9 +323,21 @@ def gust(wm, w, x, t):
 # ---- the field -----------------------------------------------------------------------------------------------------
 
 @kernel
-def _uniform_mean(wm, w, s):
+def _pose(wm, w, speeds):
+    """(o, d) of wind w now: from the row of wind_table (speeds, then 3m of points, then 3m of directions) when
+    it has them, else the model's constants (a row of speeds_table alone)."""
+    m = wm.is_source.shape[0]
+    if speeds.shape[0] == 7 * m:
+        o, d = 3 * w + m, 3 * w + 4 * m
+        return (speeds[o], speeds[o + 1], speeds[o + 2]), (speeds[d], speeds[d + 1], speeds[d + 2])
+    return _row3(wm.origin, w), _row3(wm.direction, w)
+
+
+@kernel
+def _uniform_mean(wm, w, s, speeds):
     """u = s d."""
-    return (s * wm.direction[w, 0], s * wm.direction[w, 1], s * wm.direction[w, 2])
+    d = _pose(wm, w, speeds)[1]
+    return (s * d[0], s * d[1], s * d[2])
 
 
 @kernel
@@ -318,9 +360,9 @@ def _falloff(q, p):
 
 
 @kernel
-def _source_mean(wm, w, s, x):
+def _source_mean(wm, w, s, x, speeds):
     """u = s f(|r|) c(theta) e, r = x - o, e = r / |r| (d at the source itself)."""
-    o, d = _row3(wm.origin, w), _row3(wm.direction, w)
+    o, d = _pose(wm, w, speeds)
     r = (x[0] - o[0], x[1] - o[1], x[2] - o[2])
     dist = _norm(r)
     if dist == 0.0:
@@ -345,7 +387,7 @@ def velocity_at(wm, x, speeds, t):
         s = speeds[w]
         if s == 0.0:
             continue
-        u = _source_mean(wm, w, s, x) if wm.is_source[w] else _uniform_mean(wm, w, s)
+        u = _source_mean(wm, w, s, x, speeds) if wm.is_source[w] else _uniform_mean(wm, w, s, speeds)
         if wm.has_gusts[w]:
             # u' = I |u| G(x, t), added to the mean
             scale = wm.turbulence[w] * _norm(u)
