@@ -50,9 +50,10 @@ class Expansion:
     scene_names: list = field(default_factory=list)  # (name, pos)
     parameters: dict = field(default_factory=dict)  # top-level lets after overrides: name -> Typed
     used_overrides: set = field(default_factory=set)
-    folder: Path | None = None  # the scene's folder: the files it names are relative to it
+    # the scene's folder: the files it names are relative to it (lowering reads the meshes it validates and
+    # integrates from there)
+    folder: Path | None = None
     confinement: Confinement | None = None  # where those files may be read from (isaac_lang/files.py)
-    folder: Path | None = None  # the scene's folder: where lowering reads the mesh files whose volume it integrates
 
 
 class Expander:

@@ -24,6 +24,7 @@ MAX_ASSET_BYTES = {"mesh": 64 * MiB, "texture": 256 * MiB, "recording": 256 * Mi
 # trees of the system whose files are not data (their "regular" files are generated when read)
 SYSTEM_TREES = (Path("/proc"), Path("/sys"), Path("/dev"))
 BOM = "\ufeff"
+MISSING = "no such file"
 WHERE_HINT = ("a scene reads files in its own folder and the folders below it; "
               "name another folder with --include-path DIR")
 
@@ -55,26 +56,36 @@ class Confinement:
     def for_scene(cls, folder, include_path=()) -> "Confinement":
         return cls(tuple(dict.fromkeys(_real(Path(f)) for f in (folder, *include_path))))
 
-    def allowed(self, path: Path) -> Path:
-        """The real path of `path` when a scene may read it (it need not exist yet); FileRefused when not."""
+    def allowed(self, path: Path, anywhere: bool = False) -> Path:
+        """The real path of `path` when a scene may read it (it need not exist yet); FileRefused when not.
+        anywhere: outside the scene's folders too (only the system trees are refused)."""
         real = _real(path)
-        if not any(_inside(real, root) for root in self.roots):
+        if not anywhere and not any(_inside(real, root) for root in self.roots):
             raise FileRefused("it is outside the scene's folder", WHERE_HINT)
         if any(_inside(real, tree) for tree in SYSTEM_TREES):
             raise FileRefused(f"it is in {next(t for t in SYSTEM_TREES if _inside(real, t))}, not a data file")
         return real
 
-    def regular(self, path: Path, limit: int) -> Path:
+    def regular(self, path: Path, limit: int, anywhere: bool = False) -> Path:
         """The real path of an allowed regular file of at most `limit` bytes (checked with stat, nothing read)."""
-        real = self.allowed(path)
+        real = self.allowed(path, anywhere)
         try:
             info = os.stat(real)
         except FileNotFoundError:
-            raise FileRefused("no such file") from None
+            raise FileRefused(MISSING) from None
         except OSError as error:
             raise FileRefused(f"cannot look at it: {error.strerror or error}") from None
         _check_kind_and_size(info, limit)
         return real
+
+    def refusal(self, path: Path, limit: int, anywhere: bool = False) -> FileRefused | None:
+        """Why a scene may not read the file at path (nothing is opened), or None; a missing file is None (the
+        assets stage says so, where a load reads its assets)."""
+        try:
+            self.regular(path, limit, anywhere)
+        except FileRefused as error:
+            return None if error.message == MISSING else error
+        return None
 
     def read_bytes(self, path: Path, limit: int) -> bytes:
         return read_bounded(self.regular(path, limit), limit)
@@ -148,3 +159,19 @@ def _real(path: Path) -> Path:
 
 def _inside(path: Path, folder: Path) -> bool:
     return path == folder or folder in path.parents
+
+
+def refused_assets(scene, folder, confinement: Confinement | None) -> list:
+    """[(asset, FileRefused)] of the textures and recordings a scene names (isaac_lang/assets.py) that it may not
+    read: one outside the scene's folders, a device, a FIFO, a file too large, one under /proc, /sys or /dev
+    (meshes are confined where they are named: isaac_lang/meshfile.py)."""
+    from .assets import named_assets, resolve
+
+    if confinement is None:
+        return []
+    found = []
+    for asset in named_assets(scene):
+        if asset.kind != "mesh":
+            refused = confinement.refusal(resolve(asset.name, folder or "."), MAX_ASSET_BYTES[asset.kind])
+            found += [(asset, refused)] if refused is not None else []
+    return found

@@ -25,6 +25,9 @@ MAX_NESTING = 64
 # evaluates and differentiates them by recursion, and a kinematic path once per step
 MAX_EXPR_DEPTH = 100
 MAX_EXPR_NODES = 100_000
+# the largest length (m) a scene may write: a double keeps a place out there to 1e-4 m, and its square (a
+# distance, a moment of inertia) stays far from overflow; 1e308 m is a typo, not a scene
+MAX_LENGTH = 1e12
 
 # functions of motion that only the runtime can evaluate (a recorded envelope, a live microphone, gusts)
 SIGNAL_FUNCTIONS = {"envelope", "mic", "noise", "gust"}
@@ -397,8 +400,17 @@ class ExprLowerer:
         """Check value against a slot (its dimension and vector size) and return its SI expression.
 
         A bare number is SI in a vector slot, degrees in an angle slot, and an error in any other slot with a
-        unit unless `bare_ok` (e.g. a frame rate).
+        unit unless `bare_ok` (e.g. a frame rate). A constant length is at most MAX_LENGTH.
         """
+        si = self._coerce(value, dim, what, node, size, bare_ok)
+        largest = _largest(si.value) if dim == U.LENGTH and type(si) is E.Const else 0.0
+        if largest > MAX_LENGTH:
+            raise self.fail(f"{what} reaches {largest:g} m, beyond the {MAX_LENGTH:g} m a scene may place or size "
+                            "anything", node, "is the exponent right? (a double holds 16 digits: out there a 5 cm "
+                            "ball could not keep its place)")
+        return si
+
+    def _coerce(self, value: Typed, dim: tuple, what: str, node, size: int, bare_ok: bool) -> E.Expr:
         if value.size != size or (size and is_table(value.node)):
             shape = f"a {size}-vector" if size else "a single number"
             raise self.fail(f"{what} wants {shape}", node)
@@ -435,13 +447,19 @@ _RULES = {name: getattr(ExprLowerer, "_" + name) for name in (
 
 
 def _written_in_hertz(tree) -> bool:
-    """Whether a unit in the source of this expression is Hz or kHz (a walk with a stack: trees may be deep)."""
+    """Whether a unit in the source of this expression is Hz or kHz."""
+    return written_with(tree, "Hz")
+
+
+def written_with(tree, unit: str) -> bool:
+    """Whether a token of this expression's source (not a string) holds `unit` (`Hz`, `dB`): a walk with a stack,
+    for trees may be deep."""
     stack = [tree]
     while stack:
         node = stack.pop()
         if isinstance(node, Tree):
             stack.extend(node.children)
-        elif isinstance(node, Token) and node.type != "STRING" and "Hz" in node:
+        elif isinstance(node, Token) and node.type != "STRING" and unit in node:
             return True
     return False
 
@@ -479,6 +497,13 @@ def _finite(value) -> bool:
     if type(value) is tuple and set(map(type, value)) == {float}:
         return all(map(math.isfinite, value))  # a vector: the common case, without a call per component
     return all(_finite(v) for v in value) if isinstance(value, tuple) else True
+
+
+def _largest(value) -> float:
+    """The largest magnitude of the numbers of a constant (a number, a vector, a table)."""
+    if isinstance(value, tuple):
+        return max((_largest(v) for v in value), default=0.0)
+    return abs(value) if isinstance(value, (int, float)) else 0.0
 
 
 def _example_number(value: Typed) -> str:

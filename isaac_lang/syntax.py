@@ -78,7 +78,7 @@ def describe_syntax_error(error: UnexpectedInput, text: str, file: str):
     line, col = max(1, error.line), max(1, error.column)
     if isinstance(error, UnexpectedCharacters):
         char = text[error.pos_in_stream] if error.pos_in_stream < len(text) else "?"
-        return f"unexpected character `{char}`", SourcePos(file, line, col), _hint_for_character(char)
+        return f"unexpected character {_shown(char)}", SourcePos(file, line, col), _hint_for_character(char)
     if isinstance(error, UnexpectedEOF) or (isinstance(error, UnexpectedToken) and error.token.type == "$END"):
         lines = source_lines(text) or [""]
         pos = SourcePos(file, len(lines), len(lines[-1]) + 1)
@@ -94,6 +94,13 @@ def describe_syntax_error(error: UnexpectedInput, text: str, file: str):
     pos = SourcePos(file, line, col, max(1, len(str(token))))
     message = f"unexpected {_token_text(token)}; expected {_expected(error)}"
     return message, pos, _hint_for_token(token, text, error)
+
+
+def _shown(char: str) -> str:
+    """`x`, or U+000B (a control character, a separator or a blank that a terminal would not show)."""
+    if char.isprintable() and not char.isspace():
+        return f"`{char}`"
+    return f"U+{ord(char):04X}" + (f" (`{char}`)" if char.isprintable() else "")
 
 
 def _misspelled_keyword(token: Token, text: str):

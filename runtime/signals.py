@@ -189,7 +189,7 @@ def _input_stream(device, rate: int, callback):
         import sounddevice
     except ImportError:  # also when PortAudio itself is missing (sounddevice raises OSError then)
         raise SignalError("the microphone needs the sounddevice package",
-                          "pip install sounddevice, or drive the wind from a recording: "
+                          "pip install 'isaac[mic]' (sounddevice), or drive the wind from a recording: "
                           "envelope(\"breath.wav\")") from None
     except OSError as error:
         raise SignalError(f"the microphone needs PortAudio: {error}",

@@ -458,7 +458,8 @@ class Simulation:
         return self._constraint_failure(which, error)
 
     def _constraint_failure(self, row: int, error: float) -> NumericalError:
-        name = self.plan.constraints.names[self.plan.constraints.row_constraint[row]] if row >= 0 else "?"
+        rows = self.plan.constraints.row_constraint
+        name = self.plan.constraints.names[rows[row]] if 0 <= row < len(rows) else "?"
         source = next((c.source for c in self.plan.scene.constraints if c.name == name), None)
         return NumericalError(self.state.t, self.state.steps, f"constraint `{name}`", source=source, detail=
                               f"its error grew to {error:.3g} (m or rad)")

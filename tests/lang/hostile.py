@@ -4,7 +4,9 @@ read. Each case is a folder of files (one of them the scene) and the command lin
 
     python -m tests.lang.hostile            # every case, one line each, and the totals
 
-tests/lang/test_hostile.py runs them all (the `run` ones under `-m slow` only when they simulate long).
+tests/lang/test_hostile.py runs the cases that only read the scene in its own process by default, and every case
+in an `isaac` process of its own (20 s, 4 GB) under `-m slow`. Each case says what it expects: refused (exit 2 with
+a positioned diagnostic, the default), accepted (exit 0), or either.
 """
 from __future__ import annotations
 
@@ -40,6 +42,7 @@ class Case:
     args: list  # after `isaac`; SCENE stands for the scene's path
     scene: str = "s.isaac"
     usage: bool = False  # the error may be a command-line one (no position)
+    expect: str = "error"  # error: exit 2 and a clean diagnostic; ok: exit 0; any: either
     outside: dict = field(default_factory=dict)  # files beside the case's folder (outside the scene's tree)
 
 
@@ -80,7 +83,7 @@ def cases() -> list:
         Case("include invalid UTF-8", {"s.isaac": _include("bin.isaac"), "bin.isaac": b"let a = 1\nlet \xff\xfe = 2\n"},
              ["check", "SCENE"]),
         Case("include in a loop", {"s.isaac": "scene s {\n  for i in 0 .. 5000 { include \"x.isaac\" }\n}\n",
-                                   "x.isaac": "let y = 1\n"}, ["check", "SCENE"]),
+                                   "x.isaac": "let y = 1\n"}, ["check", "SCENE"], expect="ok"),
         Case("include itself", {"s.isaac": _include("s.isaac")}, ["check", "SCENE"]),
         # -- assets: meshes, recordings, textures
         _mesh_case("mesh /dev/zero", "", file="/dev/zero"),
@@ -122,7 +125,7 @@ def cases() -> list:
         Case("gravity 1e300", {"s.isaac": scene("gravity (0, -1e300, 0) m/s2", BODY)}, ["run", "SCENE"]),
         Case("position 1e300 two spheres", {"s.isaac": scene(BODY.replace("(0, 1, 0)", "(1e300, 0, 0)"),
                                                              BODY.replace("ball", "b2"))}, ["run", "SCENE"]),
-        Case("seed 1e300", {"s.isaac": scene("seed 1e300", BODY)}, ["check", "SCENE"]),
+        Case("seed 1e300", {"s.isaac": scene("seed 1e300", BODY)}, ["check", "SCENE"], expect="any"),
         Case("time reversed", {"s.isaac": "scene s { time 5 s .. 1 s\n" + BODY + " }"}, ["check", "SCENE"]),
         Case("inertia negative", {"s.isaac": scene(BODY.replace("}", " inertia (1, -1, 1) kg*m2 }"))},
              ["check", "SCENE"]),
@@ -140,12 +143,13 @@ def cases() -> list:
                                                  "{ step 1e-9 s }\n" + BODY + " }"}, ["run", "SCENE"]),
         # -- expressions: long, deep, overflowing, dividing by zero
         Case("10000-term sum of constants", {"s.isaac": scene(BODY.replace("(0, 1, 0)", "(0, " + " + ".join(
-            ["0.0001"] * 10_000) + ", 0)"))}, ["check", "SCENE"]),
+            ["0.0001"] * 10_000) + ", 0)"))}, ["check", "SCENE"], expect="ok"),
         Case("10000-term sum of t", {"s.isaac": scene("body k box kinematic { size (1, 1, 1) m  at (0, (" + big_sum
-                                                      + ") * 1e-6 m/s, 0) }")}, ["run", "SCENE"]),
+                                                      + ") * 1e-6 m/s, 0) }")}, ["run", "SCENE"], expect="ok"),
         Case("500 unary minuses", {"s.isaac": scene(BODY.replace("(0, 1, 0)", "(0, " + "-" * 500 + "1, 0)"))},
-             ["check", "SCENE"]),
-        Case("power tower", {"s.isaac": scene("let a = " + "^".join(["1.0001"] * 500), BODY)}, ["check", "SCENE"]),
+             ["check", "SCENE"], expect="ok"),
+        Case("power tower", {"s.isaac": scene("let a = " + "^".join(["1.0001"] * 500), BODY)}, ["check", "SCENE"],
+             expect="ok"),
         Case("power tower of t", {"s.isaac": scene("let u = t / 1 s", "body k box kinematic { size (1, 1, 1) m  "
                                                    "at (0, (" + "^".join(["u"] * 300) + ") * 1 m, 0) }")},
              ["check", "SCENE"]),
@@ -168,7 +172,8 @@ def cases() -> list:
         Case("log of a negative at run time", {"s.isaac": scene("body k box kinematic { size (1, 1, 1) m  "
                                                                 "at (log(0.1 - t / 1 s) * 1 m, 0, 0) }", BODY)},
              ["run", "SCENE"]),
-        Case("a 2 MB line", {"s.isaac": scene("let a = 1 " + "+ 1 " * 500_000, BODY)}, ["check", "SCENE"]),
+        Case("a 2 MB line", {"s.isaac": scene("let a = 1 " + "+ 1 " * 500_000, BODY)}, ["check", "SCENE"],
+             expect="ok"),
         Case("nested loops", {"s.isaac": scene("for i in 0 .. 1000 { for j in 0 .. 1000 { for k in 0 .. 1000 "
                                                "{ let x = 1 } } }", BODY)}, ["check", "SCENE"]),
         # -- encodings and line separators
@@ -179,21 +184,50 @@ def cases() -> list:
         Case("old Mac line ends", {"s.isaac": scene(BODY, "bodyy x").replace("\n", "\r")}, ["check", "SCENE"]),
         Case("unicode line separator", {"s.isaac": scene(BODY) + "\u2028\u2029\x85\x0b\x1c\n"}, ["check", "SCENE"]),
         Case("NUL bytes", {"s.isaac": scene(BODY) + "\x00\x00"}, ["check", "SCENE"]),
-        Case("byte order mark", {"s.isaac": "\ufeff" + scene(BODY)}, ["check", "SCENE"]),
+        Case("byte order mark", {"s.isaac": "\ufeff" + scene(BODY)}, ["check", "SCENE"], expect="ok"),
         Case("empty scene file", {"s.isaac": ""}, ["check", "SCENE"]),
         Case("scene file is a fifo", {"s.isaac": "<fifo>"}, ["check", "SCENE"], usage=True),
         Case("scene file is /dev/zero", {}, ["check", "/dev/zero"], usage=True),
     ]
+    out += more_cases()
     ok = {"s.isaac": scene(BODY)}
     for value in ("0", "nan", "1e-300", "-1", "inf", "-0", "1 parsec", "1e400", "0x10"):
         out.append(Case(f"--step {value}", ok, ["run", "SCENE", "--step", value], usage=True))
     for value in ("-1", "nan", "inf", "0", "1e300"):
-        out.append(Case(f"--until {value}", ok, ["run", "SCENE", "--until", value], usage=True))
+        out.append(Case(f"--until {value}", ok, ["run", "SCENE", "--until", value], usage=True,
+                        expect="any" if value == "1e300" else "error"))
     for args in (["--out", "/dev/null"], ["--out", "/proc/self"], ["--out", "s.isaac"], ["--max-items", "0"],
                  ["--max-items", "1e99"], ["--set", "x=1e400"], ["--set", "x=((((("], ["--set", "=1"],
                  ["--max-constraint-error", "nan"], ["--max-constraint-error", "-1 cm"], ["--budget", "steps=-1"],
                  ["--budget", "nonsense"], ["--budget", "steps=nan"], ["--include-path", "/nonexistent"]):
         out.append(Case(f"run {' '.join(args)}", ok, ["run", "SCENE", *args], usage=True))
+    return out
+
+
+def more_cases() -> list:
+    """Numbers out of range at their position, long expressions through every command that prints the IR."""
+    deep_t = "(" + " + ".join(["t"] * 5_000) + ") * 1e-6 m/s"
+    minus_t = "-" * 500 + "t * 1 m/s"
+    path_body = "body k box kinematic {{ size (1, 1, 1) m  at (0, {0}, 0) }}"
+    out = [Case("include /proc with --include-path /", {"s.isaac": _include("/proc/self/environ")},
+                ["check", "SCENE", "--include-path", "/"], usage=True)]
+    for name, text in [("radius 0", BODY.replace("5 cm", "0 m")), ("mass nan", BODY.replace("1 kg", "(0/0) kg")),
+                       ("mass -1", BODY.replace("1 kg", "-1 kg")), ("density subnormal", BODY.replace(
+                           "mass 1 kg", "density 1e-320 kg/m3")),
+                       ("box size subnormal", "body b box { size (1, 1e-320, 1) m  mass 1 kg }"),
+                       ("inertia subnormal", BODY.replace("}", " inertia (1, 1e-320, 1) kg*m2 }")),
+                       ("frames 0", "frames 0 Hz"), ("frames nan", "frames (0/0) Hz"), ("step 0", "solver dynamics "
+                                                                                        "{ step 0 s }"),
+                       ("step -1 ms", "solver dynamics { step -1 ms }"), ("audio rate 0", "audio { rate 0 Hz }"),
+                       ("substeps 0", "solver procedural { substeps 0 }"), ("iterations -1", "solver procedural "
+                                                                                             "{ iterations -1 }")]:
+        out.append(Case(name, {"s.isaac": scene(text, BODY)}, ["check", "SCENE"]))
+    out.append(Case("time 0 s .. nan s", {"s.isaac": "scene s { time 0 s .. (0/0) s\n" + BODY + " }"},
+                    ["check", "SCENE"]))
+    for command in (["parse", "SCENE"], ["plan", "SCENE"], ["golden", "SCENE", "--update"], ["run", "SCENE"]):
+        for label, value in (("a 5000-term sum of t", deep_t), ("500 unary minuses of t", minus_t)):
+            out.append(Case(f"{label}, isaac {command[0]}", {"s.isaac": scene(path_body.format(value))}, command,
+                            expect="ok"))
     return out
 
 
@@ -250,14 +284,18 @@ def run_case(case: Case, root: Path, timeout: float = TIMEOUT) -> Outcome:
 
 
 def verdict(case: Case, code: int, output: str) -> str:
+    """ok, or what is wrong: leak, traceback, accepted (exit 0 for what must be refused), refused (exit 2 for what
+    must work), unpositioned, exit N."""
     if SECRET in output:
         return "leak"
     if code == 1 or "Traceback" in output:
         return "traceback"
     if code == 0:
-        return "ok"
+        return "accepted" if case.expect == "error" else "ok"
     if code != 2:
         return f"exit {code}"
+    if case.expect == "ok":
+        return "refused"
     if POSITIONED.search(output) or (case.usage and USAGE.search(output)):
         return "ok"
     return "unpositioned"

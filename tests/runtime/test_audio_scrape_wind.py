@@ -75,14 +75,17 @@ def test_a_contact_fades_in_without_a_click():
 def test_a_texture_file_is_the_profile(tmp_path):
     heights = np.cumsum(np.random.default_rng(3).standard_normal(20000)) * 1e-6
     np.save(tmp_path / "grooves.npy", heights)
-    plan = scrape_plan(texture=f'texture "{tmp_path / "grooves.npy"}"')
+    plan = scrape_plan(texture=f'texture "{tmp_path / "grooves.npy"}"', folder=tmp_path)
     source = plan.sounds[0].root
     assert "texture grooves.npy" in [n.profile.source for n in source.walk() if hasattr(n, "profile")]
     x = plan.render(plan.synthetic_record([], contacts=ramp_contact(plan)))[:, 0]
     rms, times = windowed_rms(x)
     assert spearman(rms[times > 0.1], times[times > 0.1]) > 0.9
     with pytest.raises(SceneError, match="texture"):
-        scrape_plan(texture=f'texture "{tmp_path / "missing.npy"}"')
+        scrape_plan(texture=f'texture "{tmp_path / "missing.npy"}"', folder=tmp_path)
+    # a texture outside the scene's folder is refused, not read (docs/language.md, includes and assets)
+    with pytest.raises(SceneError, match="outside"):
+        scrape_plan(texture=f'texture "{tmp_path / "grooves.npy"}"', folder=tmp_path / "elsewhere")
 
 
 WIND = """

@@ -55,7 +55,9 @@ def test_envelope_of_a_recording_in_a_wind(tmp_path):
     # the plan does not know the scene's folder (the IR keeps the file's name): give it, as a caller that does
     wind = compile_wind(scene, compile_plan(dataclasses.replace(scene, winds=())), folder=tmp_path)
     absolute = text.replace("puff.wav", (tmp_path / "puff.wav").as_posix())
-    assert compile_plan(load_text(absolute).scene).forces.wind is not None
+    assert compile_plan(load_text(absolute, folder=tmp_path).scene).forces.wind is not None
+    with pytest.raises(SceneError, match="outside"):  # a recording outside the scene's folder is not read
+        load_text(absolute, folder=tmp_path / "elsewhere")
     assert wind_intensity(wind, "w", 1.4) == 0.0  # the recording starts at 0.5 s: its silence lasts until 1.5 s
     assert wind_intensity(wind, "w", 1.5 + 0.01) == pytest.approx(4 * (1 - math.exp(-1)), rel=0.01)
     assert wind_intensity(wind, "w", 1.9) == pytest.approx(4.0, rel=1e-3)
