@@ -272,12 +272,12 @@ class Watch:
 
     def job_error(self, job: Job, error: SceneError) -> None:
         text = self.format_error(error, job.sources)
+        job.state, job.message, job.failed = "error", f"result #{job.n}: scene error", text
+        if self.server:  # the page first, then the terminal (report_error)
+            self.server.set_status(state="error", diagnostic=text, message=job.message)
         with self._print_lock:
             print(text, file=sys.stderr, flush=True)
         self.say(f"result #{job.n}: error (above); fix it and save")
-        job.state, job.message, job.failed = "error", f"result #{job.n}: scene error", text
-        if self.server:
-            self.server.set_status(state="error", diagnostic=text, message=job.message)
 
     def _on_frame(self, job: Job, recorder) -> None:
         """Called after every recorded frame: stop when superseded; show the frames so far when it is time."""

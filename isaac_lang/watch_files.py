@@ -4,7 +4,8 @@ Files are watched through their folders (watchfiles, i.e. inotify/FSEvents/ReadD
 editor saves by writing a new file and renaming it over the old one: a watch on the old file would see nothing.
 A folder that is deleted and made again (`git checkout`, some editors) is a new folder to the system: the watch
 notices that the folder it watches is gone or another one (its device and inode), reports the watched files in it
-as changed, and attaches to the new one when it is there. Polling (--poll, or without watchfiles) compares the
+as changed, attaches to the new one when it is there, and reports them once more when that watch is up (what was
+written in between is not missed). Polling (--poll, or without watchfiles) compares the
 files' stamps and sees the same things. A failure of the watch itself (a bug of ours or of the system) is said in
 one line with where its traceback went, and the watch starts again; notifications that fail three times in a row
 give way to polling.
@@ -38,6 +39,10 @@ class FileWatcher:
         self._stop = threading.Event()
         self._ready = threading.Event()
         self._marks: dict = {}  # folder -> (device, inode) or None when missing, as last seen
+        # folders made again since the last watch began: their files are reported once more when it is up (a file
+        # written between the folder's coming back and the new watch would be missed)
+        self._came_back: set = set()
+        self._pins: dict = {}  # folder -> (an open descriptor of it, its mark): see _pin
 
     def start(self) -> None:
         try:
@@ -79,6 +84,7 @@ class FileWatcher:
                 self.poll = self.poll or switch
                 self._ready.set()
                 self._stop.wait(RESTART_AFTER)
+        self._pin({})  # the folders held open are let go
 
     def _notified(self, watchfiles) -> None:
         while not self._stop.is_set():
@@ -91,9 +97,13 @@ class FileWatcher:
                 continue
             # step: report once nothing more changed for 50 ms (an editor's write-and-rename is one save);
             # the empty reports every 200 ms say the watch is up, and let it follow new or re-made folders
+            came_back, self._came_back = self._came_back, set()
             for changes in watchfiles.watch(*present, step=50, debounce=1600, stop_event=self._stop,
                                             yield_on_timeout=True, rust_timeout=200, raise_interrupt=False):
                 self._ready.set()
+                if came_back:  # the watch of a folder made again is up: what was written before it, once more
+                    self._queue.put(self._files_in(came_back))
+                    came_back = set()
                 if changes:
                     self._queue.put({Path(p).resolve() for _, p in changes})
                 if self.folders() != folders or any(_mark(f) != marks[f] for f in folders):
@@ -104,9 +114,29 @@ class FileWatcher:
         marks = {folder: _mark(folder) for folder in folders}
         for folder, mark in marks.items():
             if folder in self._marks and self._marks[folder] != mark:
-                self._queue.put({path for path in self.files() if path.parent == folder} | {folder})
+                self._queue.put(self._files_in({folder}))
+                if mark is not None:
+                    self._came_back.add(folder)
         self._marks = marks
+        self._pin(marks)
         return marks
+
+    def _pin(self, marks: dict) -> None:
+        """Hold each watched folder open: a folder deleted and made again at once could otherwise get the same
+        inode number back, and look unchanged. (Where folders cannot be opened, Windows, nothing is held.)"""
+        for folder in list(self._pins):
+            if marks.get(folder) is None or self._pins[folder][1] != marks[folder]:
+                os.close(self._pins.pop(folder)[0])
+        for folder, mark in marks.items():
+            if mark is not None and folder not in self._pins:
+                try:
+                    self._pins[folder] = (os.open(folder, os.O_RDONLY), mark)
+                except OSError:
+                    continue
+
+    def _files_in(self, folders: set) -> set:
+        """The watched files in those folders, and the folders (reported as changed)."""
+        return {path for path in self.files() if path.parent in folders} | set(folders)
 
     def _polling(self) -> None:
         seen = self._stamps()

@@ -11,6 +11,10 @@ step: the row of the largest error at each recorded frame (the kernels record it
 and the rows the solver dropped as dependent at the end of the run. A settled error above CONFLICT_ERROR (or the
 limit, when lower) names the constraints that keep it, with those that share a body with them: a warning on stderr
 and in report.json, and in the check (`constraints`).
+
+Before the first step (`unsatisfiable`), constraints that no pose of the bodies satisfies within the limit are
+refused (exit 2, at the first of them, naming all): the pose that comes closest is found by Gauss-Newton on the
+rows of each epoch, and what it leaves, out of the range of J, is an error no run could remove.
 """
 from __future__ import annotations
 
@@ -196,3 +200,218 @@ def _constraints_on(plan, bodies: set) -> list:
     cons = plan.constraints
     touching = np.isin(np.asarray(cons.row_bodies), list(bodies)).any(axis=1)
     return [cons.names[cons.row_constraint[r]] for r in np.flatnonzero(touching)]
+
+
+# -- constraints no pose satisfies, found before the first step -----------------------------------------------------
+
+# a least-squares pose of the dynamic bodies that still leaves a row this far off (m or rad; or the limit, when
+# higher) is one that no pose satisfies: the run would keep that error whatever it did (a feasible set is closed
+# to 1e-12 by Gauss-Newton)
+INFEASIBLE_ERROR = CONFLICT_ERROR
+# Gauss-Newton iterations towards that pose, at most (a feasible set converges in a handful)
+FEASIBILITY_ITERATIONS = 30
+# the start is turned this much (rad) first, so that a pose on a singular point of a row (an `orient` axis exactly
+# along the direction it must be perpendicular to: a zero gradient) does not stop the search there
+FEASIBILITY_NUDGE = 1e-3
+# rows times dynamic degrees of freedom above which the dense least squares is not tried (a 1000-link chain)
+FEASIBILITY_SIZE = 4_000_000
+# the other constraints on their bodies tried one by one as partners of those that keep an error, at most
+FEASIBILITY_PARTNERS = 12
+
+
+def unsatisfiable(sim, limit: float | None) -> dict | None:
+    """The constraints that no pose of the dynamic bodies satisfies together with an error below limit (m or rad:
+    --max-constraint-error; None, no limit: nothing is refused), in the first epoch (a stretch of time with one set
+    of active rows) where there are some, or None. {constraints: names in declaration order;
+    errors: name -> its rows' error at the least-squares pose (m or rad), for those that keep one; start: the
+    epoch's start (s)}. The named are those that keep an error, and the partners without which they would not.
+
+    min over the pose z of |C(z)|^2 by Gauss-Newton, dz = -J^+ C (J of the dynamic bodies' (v, w)); a row keeps
+    an error only when C is out of the range of J there, C - J J^+ C != 0: the rows pull against each other."""
+    plan = sim.plan
+    cons = plan.constraints
+    if cons is None or limit is None:
+        return None
+    threshold = max(limit, INFEASIBLE_ERROR)
+    dynamic = np.flatnonzero(plan.dynamic[:plan.n])
+    position_rows = ~sim.compiled.model.constraints.velocity_only
+    for epoch in cons.epochs:
+        rows = np.asarray([r for r in np.asarray(epoch.active).tolist() if position_rows[r]], np.int64)
+        if not len(rows) or not len(dynamic) or len(rows) * 6 * len(dynamic) > FEASIBILITY_SIZE:
+            continue
+        found = {"start": epoch.start, "limit": limit}
+        stuck = _stuck_errors(sim, rows, dynamic, threshold) if epoch.start <= plan.start else {}
+        if stuck:  # the pose is known at the start only
+            order = [c.name for c in plan.scene.constraints]
+            return {**found, "constraints": sorted(stuck, key=order.index), "errors": stuck, "stuck": True}
+        errors = _kept_errors(sim, rows, epoch.start, dynamic, threshold)
+        if errors:
+            named = set(errors) | _partners_in_conflict(sim, rows, epoch.start, dynamic, set(errors), threshold)
+            order = [c.name for c in plan.scene.constraints]
+            return {**found, "constraints": sorted(named, key=order.index), "errors": errors}
+    return None
+
+
+def _stuck_errors(sim, rows: np.ndarray, dynamic: np.ndarray, threshold: float) -> dict:
+    """{constraint name: error} of the rows on a dynamic body that are more than threshold off at the start and
+    that no motion changes there (J = 0: a singular pose, an `orient` axis exactly along the direction it must be
+    perpendicular to). The solver cannot move them: the dynamics divides by zero, the projection stays put."""
+    C, A = _row_evaluator(sim, rows, sim.state.t, dynamic)(sim.state.y)
+    on_dynamic = np.isin(np.asarray(sim.plan.constraints.row_bodies)[rows], dynamic).any(axis=1)
+    cons = sim.plan.constraints
+    errors = {}
+    for i in np.flatnonzero(on_dynamic & (np.abs(C) > threshold) & (np.linalg.norm(A, axis=1) <= 1e-9)):
+        name = cons.names[cons.row_constraint[rows[i]]]
+        errors[name] = max(errors.get(name, 0.0), abs(float(C[i])))
+    return errors
+
+
+def _partners_in_conflict(sim, rows: np.ndarray, t: float, dynamic: np.ndarray, kept: set, threshold) -> set:
+    """The other constraints on the kept ones' dynamic bodies without any one of which the kept ones would hold
+    (at most FEASIBILITY_PARTNERS of them are tried, nearest in declaration first)."""
+    cons = sim.plan.constraints
+    name_of = np.asarray([cons.names[cons.row_constraint[r]] for r in rows.tolist()])
+    bodies = set(np.asarray(cons.row_bodies)[rows[np.isin(name_of, list(kept))]].ravel().tolist()) & set(
+        dynamic.tolist())
+    touching = np.isin(np.asarray(cons.row_bodies)[rows], list(bodies)).any(axis=1)
+    candidates = [n for n in dict.fromkeys(name_of[touching].tolist()) if n not in kept][:FEASIBILITY_PARTNERS]
+    return {n for n in candidates if not set(_kept_errors(sim, rows[name_of != n], t, dynamic, threshold)) & kept}
+
+
+def _kept_errors(sim, rows: np.ndarray, t: float, dynamic: np.ndarray, threshold: float) -> dict:
+    """{constraint name: error} of the rows that stay more than threshold off at the least-squares pose."""
+    y = _nudged(sim.state.y, dynamic)
+    evaluate = _row_evaluator(sim, rows, t, dynamic)
+    C, A = evaluate(y)
+    for _ in range(FEASIBILITY_ITERATIONS):
+        if np.max(np.abs(C)) < 1e-12:
+            break
+        step = np.linalg.lstsq(A, -C, rcond=1e-10)[0]
+        moved = _line_search(evaluate, y, dynamic, step, float(C @ C))
+        if moved is None:
+            break
+        y, C, A = moved
+    evaluate(sim.state.y)  # the scratch back to the live state
+    # C - J J^+ C: what no motion of the bodies can reduce; a row without a gradient of its own is not judged
+    kept = C - A @ np.linalg.lstsq(A, C, rcond=1e-10)[0]
+    judged = np.linalg.norm(A, axis=1) > 1e-9
+    cons = sim.plan.constraints
+    errors = {}
+    for i in np.flatnonzero(judged & (np.abs(kept) > threshold) & (np.abs(C) > threshold)):
+        name = cons.names[cons.row_constraint[rows[i]]]
+        errors[name] = max(errors.get(name, 0.0), abs(float(C[i])))
+    return errors
+
+
+def _row_evaluator(sim, rows: np.ndarray, t: float, dynamic: np.ndarray):
+    """evaluate(y) -> (C (m,), A (m, 6 d)) of the rows at the padded state y and time t: A the rows' J on the
+    (v, w) of the d dynamic bodies, 6 columns each."""
+    from .core.entries import row_errors
+
+    c = sim.compiled
+    model, scratch = c.model, c.scratch
+    table = c.table.evaluate(t, 0.0, 1)
+    instances = np.unique(model.constraints.row_instance[rows])
+    column = np.full(len(sim.state.y) + 1, -1, np.int64)
+    column[dynamic] = np.arange(len(dynamic))
+    slots = np.asarray(sim.plan.constraints.row_bodies)[rows]  # (m, 2), -1 the world
+    where = np.where(slots >= 0, column[slots], -1)  # each slot's dynamic column, -1 none
+
+    def evaluate(y):
+        row_errors(model, instances, scratch, y, table)
+        C, J = scratch.C[rows].copy(), scratch.J[rows]
+        A = np.zeros((len(rows), 6 * len(dynamic)))
+        for slot in (0, 1):
+            hit = np.flatnonzero(where[:, slot] >= 0)
+            for k in range(6):
+                A[hit, 6 * where[hit, slot] + k] += J[hit, slot, k]
+        return C, A
+
+    return evaluate
+
+
+def _line_search(evaluate, y, dynamic, step, base: float):
+    """(y, C, A) after the longest of step, step/2, ... that lowers |C|^2; None when none does."""
+    for scale in 0.5 ** np.arange(12):
+        trial = _moved(y, dynamic, scale * step)
+        C, A = evaluate(trial)
+        if C @ C < base * (1.0 - 1e-12):
+            return trial, C, A
+    return None
+
+
+def _moved(y, dynamic, dz):
+    """The padded state with each dynamic body moved by dz's (dx, dtheta): x + dx, q <- exp(dtheta / 2) q (a
+    world rotation vector dtheta, as w is the world angular velocity)."""
+    y = y.copy()
+    dz = dz.reshape(-1, 6)
+    y[dynamic, 0:3] += dz[:, 0:3]
+    for b, theta in zip(dynamic.tolist(), dz[:, 3:6]):
+        y[b, 3:7] = _rotated(y[b, 3:7], theta)
+    return y
+
+
+def _rotated(q, theta):
+    """exp(theta / 2) q, normalized: q (w, x, y, z) turned by the world rotation vector theta."""
+    angle = float(np.linalg.norm(theta))
+    if angle < 1e-300:
+        return q
+    axis = theta / angle
+    w, v = math.cos(angle / 2), math.sin(angle / 2) * axis
+    # (w1, v1)(w2, v2) = (w1 w2 - v1.v2, w1 v2 + w2 v1 + v1 x v2)
+    out = np.concatenate(([w * q[0] - v @ q[1:]], w * q[1:] + q[0] * v + np.cross(v, q[1:])))
+    return out / np.linalg.norm(out)
+
+
+def _nudged(y, dynamic):
+    """The state with each dynamic body turned by FEASIBILITY_NUDGE about a fixed, skew axis."""
+    axis = np.array([0.6, -0.48, 0.64])
+    return _moved(y, dynamic, np.tile(np.concatenate((np.zeros(3), FEASIBILITY_NUDGE * axis)), len(dynamic)))
+
+
+def unsatisfiable_error(scene, found: dict):
+    """The SceneError (exit 2) of constraints no pose satisfies: at the first declared, naming them all and where
+    the others are declared."""
+    from isaac_lang.diagnostics import Diagnostic, SceneError, SourcePos
+
+    sources = {c.name: c.source for c in scene.constraints}
+    names, errors = found["constraints"], found["errors"]
+    listed = " and ".join(", ".join(f"`{n}`" for n in names).rsplit(", ", 1))
+    kept = ", ".join(f"`{n}` {errors[n]:.3g}" for n in names if n in errors)
+    first = SourcePos.parse(sources.get(names[0]) or "")
+    others = "; ".join(f"`{n}` is at {_where(SourcePos.parse(sources.get(n) or ''), first)}" for n in names[1:]
+                       if SourcePos.parse(sources.get(n) or ""))
+    when = f" from t = {found['start']:g} s" if found["start"] > scene.time.start else ""
+    if found.get("stuck"):
+        return SceneError([_stuck_diagnostic(names, errors, listed, others, found["limit"], first)])
+    if len(names) > 1:
+        message = (f"constraints {listed} cannot {'both' if len(names) == 2 else 'all'} hold{when}: in the pose of the "
+                   f"bodies that comes closest, errors remain ({kept}, m or rad), above --max-constraint-error "
+                   f"{found['limit']:g}")
+    else:
+        message = (f"constraint `{names[0]}` cannot hold{when}: in every pose its error stays ({kept}, m or rad), "
+                   f"above --max-constraint-error {found['limit']:g}")
+    hint = ((others + ": " if others else "") + "check their points, axes and targets (two nails that disagree, "
+            "a body tied to two places, axes that cannot all be perpendicular), give them `during` windows that do "
+            "not overlap, or raise the limit with --max-constraint-error")
+    return SceneError([Diagnostic(message, first, hint)])
+
+
+def _stuck_diagnostic(names: list, errors: dict, listed: str, others: str, limit: float, first):
+    from isaac_lang.diagnostics import Diagnostic
+
+    many = len(names) > 1
+    said = ("their errors are " + ", ".join(f"`{n}` {errors[n]:.3g}" for n in names) if many
+            else f"its error is {errors[names[0]]:.3g}")
+    return Diagnostic(
+        f"{'constraints' if many else 'constraint'} {listed} cannot act at the start: {said} (m or rad), above "
+        f"--max-constraint-error {limit:g}, and no motion of the bodies changes {'them' if many else 'it'} there",
+        first, (others + ": " if others else "") + "an axis is exactly along the direction it must be "
+        "perpendicular to: turn the body a little with `orient`, or start it where the constraint holds")
+
+
+def _where(pos, first) -> str:
+    """`line L, column C` in the first one's file, else `file:line:col`."""
+    if first is not None and pos.file == first.file:
+        return f"line {pos.line}, column {pos.col}"
+    return str(pos)

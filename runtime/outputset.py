@@ -6,7 +6,8 @@
 
 open     reclaim what killed runs left beside the folder (below); check the folder is isaac's; make the staging
          folder `.NAME.isaac-new-PID-TAG/` beside it, its manifest saying `"state": "writing"` from the start
-write    the caller writes every file of the set into the staging folder
+write    the caller writes every file of the set into the staging folder (an OSError there, a full disk, becomes a
+         SceneError: exit 2, the folder as it was)
 commit   the manifest (`.isaac-outputs.json`: `"state": "whole"`, the files of the set); the user's own files of
          the old folder hard-linked in (the old folder stays whole); the two folders exchanged in one rename
          (Linux renameat2 RENAME_EXCHANGE; elsewhere two renames, the old one aside first); any file the user put
@@ -45,6 +46,8 @@ MANIFEST = ".isaac-outputs.json"
 FORMAT = "isaac-outputs/1"
 # the staging and aside folders of a swap: `.NAME.isaac-new-PID-TAG`, `.NAME.isaac-old-PID-TAG`
 LEFTOVER = re.compile(r"^\.(?P<name>.+)\.isaac-(?P<kind>new|old)-(?P<pid>\d+)-(?P<tag>[0-9a-f]{8})$")
+# a temporary of write_atomic (runtime/outputs.py): `.NAME.` and 12 hex digits
+TEMPORARY = re.compile(r"^\.(?P<name>.+)\.[0-9a-f]{12}$")
 # without process ids to ask (Windows), a leftover this old (s) is taken as abandoned
 ABANDONED_AGE = 3600.0
 
@@ -71,9 +74,11 @@ class OutputSet:
         self.open()
         return self
 
-    def __exit__(self, *exc) -> bool:
+    def __exit__(self, kind, error, trace) -> bool:
         if not self.committed:
             self.discard()
+        if isinstance(error, OSError) and not self.committed:  # a full disk, a lost mount: said, exit 2
+            raise _unwritable(self.folder, error) from error
         return False
 
     def check(self) -> None:
@@ -89,8 +94,8 @@ class OutputSet:
         with _lock:
             _active.add(path)
         try:
+            self.path = path  # first: a Ctrl-C right after the mkdir is cleaned up too (discard)
             os.mkdir(path)
-            self.path = path
             _write_first_manifest(path, {"format": FORMAT, "state": "writing", "command": self.command,
                                          "pid": os.getpid()})
             if self.target.is_dir():  # the new folder gets the old one's permissions
@@ -129,7 +134,7 @@ class OutputSet:
 
     def discard(self) -> None:
         if self.path is not None and self.path.exists() and not self.committed:
-            shutil.rmtree(self.path, ignore_errors=True)
+            remove_set(self.path)  # its manifest last: a second Ctrl-C meanwhile leaves a leftover known as ours
         with _lock:
             _active.discard(self.path)
 
@@ -180,6 +185,12 @@ def _refuse_cwd(folder: Path, target: Path) -> None:
                                f"output folder as a whole", "choose another folder with --out")
 
 
+def _unwritable(folder: Path, error: OSError):
+    what = f" ({error.filename})" if error.filename else ""
+    return _refused(folder, f"cannot write the outputs into {folder}: {error.strerror or error}{what}; the folder "
+                            f"keeps the files it had", "free some space, or choose another folder with --out")
+
+
 def _refused(folder: Path, message: str, hint: str):
     from isaac_lang.diagnostics import Diagnostic, SceneError
 
@@ -225,15 +236,18 @@ def _adopt(target: Path, listed: set) -> None:
 
 def unlisted(folder: Path, listed: set):
     """(relative path, is an empty folder) of everything in folder that is not the set's: the user's. Links are
-    not followed (a link is a file here)."""
+    not followed (a link is a file here); a temporary of one of isaac's files (write_atomic's `.NAME.RANDOM`, left
+    by a kill) is nobody's."""
     folder = Path(folder)
+    ours = {MANIFEST, *OWNED_FILES, *OWNED_PLOTS} | {Path(rel).name for rel in listed}
     for root, dirs, files in os.walk(folder):
         base = Path(root)
         links = [d for d in dirs if (base / d).is_symlink()]
         dirs[:] = [d for d in dirs if d not in links]
         for name in files + links:
             rel = (base / name).relative_to(folder).as_posix()
-            if rel != MANIFEST and rel not in listed:
+            temporary = TEMPORARY.match(name)
+            if rel != MANIFEST and rel not in listed and not (temporary and temporary["name"] in ours):
                 yield rel, False
         if base != folder and not dirs and not files and not links:
             yield base.relative_to(folder).as_posix(), True
@@ -298,7 +312,7 @@ def remove_set(folder: Path) -> None:
     """Remove an old set (or a staging folder): marked `removing` first, its manifest last."""
     folder = Path(folder)
     manifest = read_manifest(folder)
-    if manifest:
+    if manifest and manifest.get("state") == "whole":  # a staging folder stays `writing`: none of it is the user's
         _write_manifest(folder, dict(manifest, state="removing"))
     for entry in os.scandir(folder):
         if entry.name == MANIFEST:
@@ -314,6 +328,9 @@ def remove_set(folder: Path) -> None:
         return  # something appeared in it meanwhile: left, marked, for the next run to reclaim
     try:
         os.unlink(folder / MANIFEST)
+    except FileNotFoundError:
+        pass  # a folder killed before its manifest was written, or after it was removed
+    try:
         os.rmdir(folder)
     except OSError:
         pass
@@ -400,7 +417,7 @@ def reclaim(parent: Path, again: bool = False) -> list:
         if match is None or not entry.is_dir(follow_symlinks=False):
             continue
         path = Path(entry.path)
-        if _abandoned(path, int(match["pid"])) and _reclaim_one(path, parent / match["name"]):
+        if abandoned(path, int(match["pid"])) and _reclaim_one(path, parent / match["name"]):
             done.append(path)
     return done
 
@@ -409,7 +426,7 @@ def _reclaim_one(path: Path, target: Path) -> bool:
     manifest = read_manifest(path)
     if manifest is None and any(os.scandir(path)):
         return False  # named like ours, but not ours
-    state = (manifest or {}).get("state")
+    state = (manifest or {}).get("state")  # writing: killed while writing; whole, removing: an old set
     if state == "whole" and not os.path.lexists(target):
         os.rename(path, target)  # a whole set whose folder went: put it back
         return True
@@ -419,7 +436,8 @@ def _reclaim_one(path: Path, target: Path) -> bool:
     return True
 
 
-def _abandoned(path: Path, pid: int) -> bool:
+def abandoned(path: Path, pid: int) -> bool:
+    """Whether what process pid left at path is abandoned: that process is gone (this process: not writing it)."""
     if pid == os.getpid():
         with _lock:
             return path not in _active

@@ -12,6 +12,7 @@ import dataclasses
 import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,6 +66,10 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     if options.verbosity > 0:
         print(plan.describe(), file=sys.stderr)
     sim = Simulation(plan)
+    # constraints no pose satisfies within the tolerance: refused before the first step
+    found = checks.unsatisfiable(sim, options.max_constraint_error)
+    if found is not None:
+        raise checks.unsatisfiable_error(scene, found)
     audio = plan.audio.record(sim) if plan.audio is not None else None
     recorder = Recorder(plan.frame_times, plan.names)
     error = None
@@ -79,7 +84,9 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
         except NumericalError as failure:
             error = failure
     energy0 = float(recorder.energy[0]) if recorder.count else sim.energy()  # the first frame's: the start
-    report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
+    with np.errstate(all="ignore"), warnings.catch_warnings():  # a blown-up run's figures are NaN: null in JSON
+        warnings.simplefilter("ignore", RuntimeWarning)
+        report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
     report["warnings"] = list(options.scene_warnings) + report["warnings"]
     conflict = _conflicts(sim, recorder, options.max_constraint_error) if error is None else None
     if conflict is not None:
@@ -127,7 +134,7 @@ def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path 
     where = f"{scene_path}" if scene_path else scene.name
     warnings = _say_warnings(where, result.report["warnings"], options)
     if result.error is not None:
-        _say_error(where, f"{result.error}", (
+        _say_error(where, f"{result.error}", result.error.source, (
             f"try a smaller step (`solver dynamics {{ step 0.5 ms }}` or --step), a lower stabilization frequency, "
             f"or the procedural solver (--solver procedural); the trajectory up to t = {result.error.time:.6g} s "
             f"is in {out / 'trajectory.npz'}"))
@@ -183,8 +190,10 @@ def format_warning(text: str, scene_path, severity: str = "warning") -> str:
     return diagnostic.format()
 
 
-def _say_error(where: str, message: str, hint: str) -> None:
-    print(f"{where}: error: {message}\nhint: {hint}", file=sys.stderr)
+def _say_error(where: str, message: str, source: str | None, hint: str) -> None:
+    """`scene: error: message`, or at the culprit's declaration (`file:line:col: error:`) when it is known."""
+    said = format_warning(f"{source}: {message}", where, "error") if source else f"{where}: error: {message}"
+    print(f"{said}\nhint: {hint}", file=sys.stderr)
 
 
 def _say_summary(scene: ir.Scene, r: dict, out: Path, written: list, options: RunOptions) -> None:
@@ -208,7 +217,7 @@ def _broken_tolerance(where: str, report: dict) -> bool:
     named = f" (constraints {', '.join(f'`{n}`' for n in check['constraints'])})" if check.get("constraints") else ""
     _say_error(where, f"the constraint error stays at {check['value']:.3g} (m or rad) once switched-on constraints "
                       f"have settled (largest at t = {check['time']:.6g} s), above --max-constraint-error "
-                      f"{check['limit']:g}{named}",
+                      f"{check['limit']:g}{named}", None,
                "constraints that cannot all hold (two nails that disagree, a body tied to two places) keep their "
                "error: check the anchor points, or raise the limit with --max-constraint-error")
     return True

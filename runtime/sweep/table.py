@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from functools import lru_cache
 from pathlib import Path
 
 from .task import Task
 
 JOURNAL, TABLE = "journal.jsonl", "sweep"
+# a table being written: `.sweep.parquet.PID.tmp`, `.sweep.csv.PID.tmp`
+TEMPORARY = re.compile(r"^\.sweep\.(parquet|csv)\.(?P<pid>\d+)\.tmp$")
 # columns of our own, before the report's scalars (a report key named like one of these gets `report.`)
 OWN = ("variant", "id", "status", "diagnostic", "variant_wall_time", "outputs")
 RETRIED = ("error",)  # a bug or a lost worker is tried again on a re-run; a scene's own failure is not
@@ -118,12 +121,33 @@ def _si(text: str, name: str):
 
 
 def write_table(table, folder: Path) -> tuple:
-    """DIR/sweep.parquet and DIR/sweep.csv, each written to a temporary name and renamed."""
+    """DIR/sweep.parquet and DIR/sweep.csv: both written to temporaries (`.sweep.parquet.PID.tmp`), then renamed
+    one right after the other; what a killed sweep left of those temporaries is removed first."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    _remove_abandoned_temporaries(folder)
     parquet, csv = folder / f"{TABLE}.parquet", folder / f"{TABLE}.csv"
-    table.to_parquet(parquet.with_name(parquet.name + ".tmp"), index=False)
-    os.replace(parquet.with_name(parquet.name + ".tmp"), parquet)
-    table.to_csv(csv.with_name(csv.name + ".tmp"), index=False)
-    os.replace(csv.with_name(csv.name + ".tmp"), csv)
+    temporary = {path: folder / f".{path.name}.{os.getpid()}.tmp" for path in (parquet, csv)}
+    try:
+        table.to_parquet(temporary[parquet], index=False)
+        table.to_csv(temporary[csv], index=False)
+        for path, written in temporary.items():
+            os.replace(written, path)
+    finally:
+        for written in temporary.values():
+            if written.exists():
+                written.unlink()
     return parquet, csv
+
+
+def _remove_abandoned_temporaries(folder: Path) -> None:
+    """The table temporaries of sweeps whose process is gone (runtime/outputset.py's test of a process)."""
+    from ..outputset import abandoned
+
+    for entry in os.scandir(folder):
+        match = TEMPORARY.match(entry.name)
+        if match and entry.is_file() and abandoned(Path(entry.path), int(match["pid"])):
+            try:
+                os.unlink(entry.path)
+            except FileNotFoundError:
+                pass

@@ -2,7 +2,8 @@
 outputs: every time, the folder holds exactly one run's files, whole (the old scene's or the new one's, every
 file of it from that one run), no temporaries, and the user's own file; what the killed runs left beside it is
 reclaimed by the next run. Half the kills land anywhere in a run, half while its files are being written (once
-its staging folder appears). `-m slow` kills sixty runs; the default run kills a few.
+its staging folder appears). `isaac export` into a run's folder and a sweep's variant folders (and its table)
+are killed the same way. `-m slow` kills sixty runs and thirty of each other; the default run kills a few.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import re
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -146,4 +148,173 @@ def test_sixty_runs_killed_at_random_leave_one_whole_set(tmp_path):
     tally = kill_runs(tmp_path, kills=60, seed=2020)
     print(f"kills: {tally}")
     # the kills must have reached both outcomes, or the test proved nothing about the swap
+    assert tally["old"] > 0 and tally["new"] > 0
+
+
+# -- isaac export: its files join the run's set, or replace the export of the set ------------------------------------
+
+EXPORTS = {"rib 0:40": ("--format", "rib", "--frames", "0:40"), "rib 0:150": ("--format", "rib", "--frames", "0:150"),
+           "gltf": ("--format", "gltf")}
+
+
+def export_command(kind: str, out: Path) -> list:
+    return [sys.executable, "-m", "isaac_lang.cli", "export", str(SCENES / "pendulum.isaac"), "--out", str(out),
+            *EXPORTS[kind], "-q"]
+
+
+def exported(folder: Path) -> tuple:
+    """(the RIB files, whether the glTF is there) of the folder, after checking it holds one whole run's set."""
+    one_run(folder)
+    rib = frozenset(p.name for p in (folder / "rib").iterdir()) if (folder / "rib").is_dir() else frozenset()
+    return rib, (folder / "pendulum.gltf").is_file()
+
+
+def kill_exports(tmp_path: Path, kills: int, seed: int) -> dict:
+    rng = random.Random(seed)
+    out = tmp_path / "out" / "shared"
+    out.parent.mkdir()
+    assert subprocess.run([sys.executable, "-m", "isaac_lang.cli", "run", str(SCENES / "pendulum.isaac"), "--out",
+                           str(out), "--until", "2", "-q"], timeout=300).returncode == 0
+    (out / "notes.txt").write_text(NOTE)
+    files, seconds = {}, {}
+    for kind in EXPORTS:  # each export once to the end: its files, and how long it takes
+        started = time.monotonic()
+        assert subprocess.run(export_command(kind, out), stdout=subprocess.DEVNULL, timeout=300).returncode == 0
+        seconds[kind] = time.monotonic() - started
+        files[kind] = exported(out)[0] if kind.startswith("rib") else None
+    held = exported(out)
+    tally = {"kills": 0, "old": 0, "new": 0}
+    for attempt in range(kills):
+        kind = rng.choice([k for k in EXPORTS if (files[k] or held[0]) != held[0] or k == "gltf" and not held[1]]
+                          or list(EXPORTS))
+        new = (files[kind], held[1]) if kind.startswith("rib") else (held[0], True)
+        how = (signal.SIGKILL, signal.SIGINT)[attempt % 2]
+        run_and_kill(export_command(kind, out), out.parent, out.name, how, rng.uniform(0, seconds[kind] * 1.1),
+                     False, rng)
+        now = exported(out)
+        assert now in (held, new), f"attempt {attempt} ({kind}): {len(now[0])} RIB files, glTF {now[1]}"
+        tally["kills"] += 1
+        tally["new" if now != held else "old"] += 1
+        held = now
+        inside = [p.name for p in out.rglob(".*") if p.name != MANIFEST]
+        assert not inside, f"temporaries in the folder: {inside}"
+    assert subprocess.run(export_command("rib 0:40", out), stdout=subprocess.DEVNULL, timeout=300).returncode == 0
+    assert exported(out)[0] == files["rib 0:40"]
+    assert not [p.name for p in out.parent.iterdir() if LEFTOVER.match(p.name)], "leftovers not reclaimed"
+    return tally
+
+
+def test_exports_killed_at_random_leave_one_whole_set(tmp_path):
+    assert kill_exports(tmp_path, kills=4, seed=21)["kills"] == 4
+
+
+@pytest.mark.slow
+def test_thirty_exports_killed_at_random_leave_one_whole_set(tmp_path):
+    tally = kill_exports(tmp_path, kills=30, seed=2121)
+    print(f"export kills: {tally}")
+    assert tally["old"] > 0 and tally["new"] > 0
+
+
+# -- a sweep's kept outputs and its table ---------------------------------------------------------------------------
+
+# what a sweep's client does with each finished variant and at its end (runtime/sweep/driver.py), without the Dask
+# cluster: every file of a variant starts with the generation that wrote it
+SWEEP_WRITER = textwrap.dedent("""
+    import sys
+    from pathlib import Path
+
+    import numpy as np
+    import pandas as pd
+
+    from isaac_runtime.sweep.table import store_outputs, write_table
+    from isaac_runtime.sweep.task import Task
+
+    folder, generation = Path(sys.argv[1]), int(sys.argv[2])
+    rng = np.random.default_rng(generation)
+    print("writing", flush=True)
+    for i in range(3):
+        files = {name: f"{generation}\\n".encode() + rng.bytes(400_000)
+                 for name in ("trajectory.npz", "events.json", "ir.json", "report.json")}
+        store_outputs(folder, Task(index=i, id=f"v{i}", values={"x": str(i)}), files)
+    write_table(pd.DataFrame({"variant": [0, 1, 2], "generation": [generation] * 3}), folder)
+""")
+VARIANT_FILES = {"trajectory.npz", "events.json", "ir.json", "report.json"}
+
+
+def sweep_state(folder: Path) -> tuple:
+    """(the generation of each variant's set, None where there is none), after checking each is one whole set and
+    the table is whole."""
+    generations = []
+    for i in range(3):
+        variant = folder / "variants" / f"v{i}"
+        if not variant.exists():
+            generations.append(None)
+            continue
+        manifest = read_manifest(variant)
+        assert manifest and manifest["state"] == "whole" and set(manifest["files"]) == VARIANT_FILES
+        assert {p.name for p in variant.iterdir()} == VARIANT_FILES | {MANIFEST}, "temporaries or missing files"
+        heads = {(variant / name).read_bytes().split(b"\n", 1)[0] for name in VARIANT_FILES}
+        assert len(heads) == 1, f"v{i} mixes the files of generations {heads}"
+        generations.append(int(heads.pop()))
+    if (folder / "sweep.parquet").exists():
+        import pandas as pd
+
+        assert len(set(pd.read_parquet(folder / "sweep.parquet")["generation"])) == 1
+    return tuple(generations)
+
+
+def kill_sweeps(tmp_path: Path, kills: int, seed: int) -> dict:
+    rng = random.Random(seed)
+    folder = tmp_path / "sweep"
+
+    def writer(generation: int) -> list:
+        return [sys.executable, "-c", SWEEP_WRITER, str(folder), str(generation)]
+
+    def start(generation: int) -> tuple:
+        """The writer's process, once it has its modules and begins to write."""
+        process = subprocess.Popen(writer(generation), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        assert process.stdout.readline() == "writing\n"
+        return process, time.monotonic()
+
+    process, started = start(1)
+    assert process.wait(timeout=300) == 0
+    writing = time.monotonic() - started
+    held = sweep_state(folder)
+    assert held == (1, 1, 1)
+    tally = {"kills": 0, "old": 0, "new": 0}
+    for attempt in range(kills):
+        generation = attempt + 2
+        how = (signal.SIGKILL, signal.SIGINT)[attempt % 2]
+        process, started = start(generation)
+        delay = rng.uniform(0, 1.2 * writing)
+        while process.poll() is None and time.monotonic() - started < delay:
+            time.sleep(0.0005)
+        if process.poll() is None:
+            process.send_signal(how)
+        process.wait(timeout=120)
+        now = sweep_state(folder)
+        for i, (before, after) in enumerate(zip(held, now)):
+            assert after in (before, generation), f"attempt {attempt}: v{i} holds generation {after}"
+        # the variants are written in order: a new one only after every one before it
+        assert list(now) == [generation] * now.count(generation) + list(held[now.count(generation):])
+        tally["kills"] += 1
+        tally["new" if generation in now else "old"] += 1
+        held = now
+    assert subprocess.run(writer(99), timeout=300).returncode == 0
+    assert sweep_state(folder) == (99, 99, 99)
+    leftovers = {p.name: (sorted(q.name for q in p.iterdir()), read_manifest(p))
+                 for p in (folder / "variants").iterdir() if LEFTOVER.match(p.name)}
+    assert not leftovers, f"leftovers not reclaimed: {leftovers}"
+    assert sorted(p.name for p in folder.iterdir()) == ["sweep.csv", "sweep.parquet", "variants"]
+    return tally
+
+
+def test_sweep_outputs_killed_at_random_stay_whole(tmp_path):
+    assert kill_sweeps(tmp_path, kills=4, seed=22)["kills"] == 4
+
+
+@pytest.mark.slow
+def test_thirty_sweep_writes_killed_at_random_stay_whole(tmp_path):
+    tally = kill_sweeps(tmp_path, kills=30, seed=2222)
+    print(f"sweep kills: {tally}")
     assert tally["old"] > 0 and tally["new"] > 0

@@ -39,3 +39,19 @@ def test_every_output_file_and_field_is_documented(tmp_path, capsys):
     assert events and not [k for k in set(keys(events)) if f"`{k}`" not in DOC]
     with np.load(out / "trajectory.npz", allow_pickle=False) as data:
         assert not [k for k in data.files if f"`{k}`" not in DOC]
+
+
+def test_every_field_and_state_of_the_manifest_is_documented(tmp_path, capsys):
+    from isaac_runtime.outputset import read_manifest
+    from isaac_runtime.sweep.table import store_outputs
+    from isaac_runtime.sweep.task import Task
+
+    out = tmp_path / "out"
+    assert main(["run", str(ROOT / "scenes" / "pendulum.isaac"), "--out", str(out), "--until", "0.1"]) == 0
+    store_outputs(tmp_path / "sweep", Task(index=0, id="v0", values={"x": "1"}), {"report.json": b"{}"})
+    manifests = [read_manifest(out), read_manifest(tmp_path / "sweep" / "variants" / "v0")]
+    fields = {key for manifest in manifests for key in manifest}
+    assert {"format", "state", "command", "pid", "written", "files", "scene", "run", "variant"} <= fields
+    assert not [k for k in fields if f"`{k}`" not in DOC], "manifest fields not in docs/outputs.md"
+    for word in ("`writing`", "`whole`", "`removing`", "`adopted`", "`isaac-outputs/1`", "`.NAME.isaac-new-*`"):
+        assert word in DOC, f"docs/outputs.md does not say {word}"

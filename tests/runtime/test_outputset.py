@@ -17,6 +17,8 @@ from isaac_runtime import outputset
 from isaac_runtime.outputs import finite_or_null, write_json
 from isaac_runtime.outputset import MANIFEST, OutputSet, read_manifest, reclaim
 
+from .test_run import BLOWS_UP
+
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
 
@@ -209,13 +211,7 @@ def test_a_blow_up_writes_a_strict_report_with_its_error(tmp_path, capsys, monke
 
     monkeypatch.setattr(run, "simulate", blown)
     scene = tmp_path / "bad.isaac"
-    scene.write_text("""scene bad {
-  time 0 s .. 5 s
-  solver dynamics { step 20 ms  stabilize 200 Hz }
-  body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) }
-  constraint hang nail(bob @ (-0.9, 0, 0), (0, 0, 0))
-}
-""")
+    scene.write_text(BLOWS_UP)
     out = tmp_path / "out"
     assert main(["run", str(scene), "--out", str(out)]) == 2
     report = json.loads((out / "report.json").read_text(), parse_constant=_refuse)
@@ -234,3 +230,67 @@ def test_sweep_variants_are_stored_whole(tmp_path, swap_mode):
     store_outputs(tmp_path, task, {"report.json": b"{}"})
     assert sorted(p.name for p in target.iterdir()) == [MANIFEST, "report.json"]
     assert leftovers(target.parent) == []
+
+
+def test_a_temporary_in_an_old_set_killed_while_it_was_marked_is_nobodys(tmp_path):
+    # killed while remove_set rewrote the old set's manifest (`removing`): its temporary is isaac's, not the user's
+    out = tmp_path / "s"
+    write_set(out, {"a.txt": "set"})
+    old = tmp_path / f".s.isaac-new-{dead_pid()}-0000ffff"
+    old.mkdir()
+    (old / MANIFEST).write_text(json.dumps({"format": outputset.FORMAT, "state": "whole", "files": ["a.txt"]}))
+    (old / "a.txt").write_text("older")
+    (old / f".{MANIFEST}.0123456789ab").write_text("{half a manifest")
+    (old / ".a.txt.abcdef012345").write_text("half")
+    (old / ".mine.0123456789ab").write_text("the user's, named like a temporary of a file that is not isaac's")
+    # killed between the staging folder and its manifest, or between the removal of a set's manifest and of it
+    (tmp_path / f".s.isaac-new-{dead_pid()}-0000eeee").mkdir()
+    reclaim(tmp_path, again=True)
+    assert leftovers(tmp_path) == []
+    assert sorted(p.name for p in out.iterdir()) == [".isaac-outputs.json", ".mine.0123456789ab", "a.txt"]
+
+
+def test_a_run_that_cannot_write_its_report_leaves_the_old_set_and_says_why(tmp_path, capsys, monkeypatch):
+    import errno
+
+    from isaac_runtime import run
+
+    out = tmp_path / "out"
+    assert main(["run", str(SCENES / "pendulum.isaac"), "--out", str(out), "--until", "0.1"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    real = run.write_json
+
+    def full_disk(path, data):
+        if Path(path).name == "report.json":  # written last: every other file of the new set is there already
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        real(path, data)
+
+    monkeypatch.setattr(run, "write_json", full_disk)
+    capsys.readouterr()
+    assert main(["run", str(SCENES / "pendulum.isaac"), "--out", str(out), "--until", "0.2"]) == 2
+    err = capsys.readouterr().err
+    assert f"error: cannot write the outputs into {out}: No space left on device" in err and "internal" not in err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before and leftovers(tmp_path) == []
+
+
+def test_a_staging_folder_is_never_taken_for_the_users_files(tmp_path, monkeypatch):
+    # a staging folder killed while writing, then a run killed while reclaiming it: its files are the new set's,
+    # none goes into the folder (the old set, without sound, stays as it was)
+    out = tmp_path / "s"
+    write_set(out, {"report.json": "old"})
+    staging = tmp_path / f".s.isaac-new-{dead_pid()}-0000abcd"
+    staging.mkdir()
+    (staging / MANIFEST).write_text(json.dumps({"format": outputset.FORMAT, "state": "writing"}))
+    (staging / "audio.wav").write_text("the new set's sound")
+    real_unlink = os.unlink
+
+    def killed(path, *args, **kwargs):  # Ctrl-C at the reclaim's first removal
+        monkeypatch.setattr(os, "unlink", real_unlink)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "unlink", killed)
+    with pytest.raises(KeyboardInterrupt):
+        reclaim(tmp_path, again=True)
+    assert read_manifest(staging)["state"] == "writing" and (staging / "audio.wav").exists()
+    reclaim(tmp_path, again=True)
+    assert listing(out) == {"report.json": "old"} and leftovers(tmp_path) == []
