@@ -143,7 +143,8 @@ class Browser:
     """Chromium, headless, with a fresh profile; a context manager that stops it on exit."""
 
     def __init__(self, timeout: float = 30.0):
-        self.profile = tempfile.TemporaryDirectory(prefix="isaac-cdp-")
+        # (Chromium's helper processes may still write the profile while it is removed: their leftovers are let be)
+        self.profile = tempfile.TemporaryDirectory(prefix="isaac-cdp-", ignore_cleanup_errors=True)
         self.process = subprocess.Popen([chromium(), *FLAGS, f"--user-data-dir={self.profile.name}", "about:blank"],
                                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + timeout

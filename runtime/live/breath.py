@@ -175,7 +175,8 @@ class FileSource:
         try:
             samples, rate = soundfile.read(str(self.path), dtype="float64", always_2d=True)
         except Exception as error:  # soundfile raises its own LibsndfileError / RuntimeError
-            raise S.SignalError(f"--mic: cannot read `{path}` as sound: {error}", "use a WAV, FLAC or OGG file") from None
+            raise S.SignalError(f"--mic: cannot read `{path}` as sound: {error}",
+                                "use a WAV, FLAC or OGG file") from None
         self.samples, self.rate = samples.mean(axis=1), float(rate)
         self.block = max(1, int(round(self.rate * BLOCK_SECONDS)))
         self.clock, self.sleep = clock, sleep

@@ -8,8 +8,10 @@
 Scene time t is due at wall time `origin + (t - start)`. The steps of a frame run when its start is due (so that
 the breath they read is the breath of that moment, never one from their future), and the frame is late when it
 is ready after its own time: its lag. A late frame is not raced after: when the lag passes CATCH_UP the clock
-slips by it (`origin` moves on) and the run goes on slowed down. When the work of a frame takes longer than the
-frame itself over a second or more, the run says so once, with the factor it can keep up (frame time over work).
+slips by it (`origin` moves on) and the run goes on slowed down. When the work of the frames takes longer than
+the frames themselves, over a second of scene time or a second of work (whichever comes first: a very slow scene
+is told within a second of the wall clock), the run says so once, with the factor it can keep up (frame time over
+work).
 A stall that is not the simulation's (a parameter re-planned) is forgiven with `forgive()`: the clock slips, and
 the lag is not counted.
 """
@@ -21,9 +23,11 @@ from collections import deque
 
 # s: a frame later than this behind the wall clock is not caught up with: the clock slips instead
 CATCH_UP = 0.1
-# frames over which "it cannot keep up" is judged (a second at 50 Hz) and the fraction of real time below which
-# it is said
+# frames over which "it cannot keep up" is judged (a second at 50 Hz), or fewer (at least SLOW_FEWEST) once their
+# work reaches SLOW_WORK seconds; and the fraction of real time below which it is said
 SLOW_WINDOW = 50
+SLOW_FEWEST = 5
+SLOW_WORK = 1.0
 SLOW_BELOW = 0.97
 
 
@@ -75,9 +79,12 @@ class Pacer:
         self._judge()
 
     def _judge(self) -> None:
-        if self.slow_factor is not None or len(self.work) < self.work.maxlen:
+        if self.slow_factor is not None:
             return
-        factor = self.frame * len(self.work) / max(sum(self.work), 1e-12)
+        work = sum(self.work)
+        if len(self.work) < self.work.maxlen and (len(self.work) < SLOW_FEWEST or work < SLOW_WORK):
+            return
+        factor = self.frame * len(self.work) / max(work, 1e-12)
         if factor < SLOW_BELOW:
             self.slow_factor = factor
             self.say(f"isaac live: the simulation cannot keep up with the wall clock: it runs at {factor:.2f}x real "

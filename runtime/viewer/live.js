@@ -4,6 +4,8 @@
 // frame, the pointer's point in the world, on the plane through the picked point facing the camera; released on
 // button up), a slider changes a declared parameter (POST /parameter, re-planned by the server). The drawing is
 // draw.js's, the same as the offline viewer's. Written for Isaac, no library.
+// What it has shown is kept on <body data-*> for tests and tools: ready, frames, frame, t, breath, wind (JSON),
+// dragging, dragBody, audioBlocks, audioPlayed, audioSeconds, audioFrom, version, ended.
 "use strict";
 
 (function () {
@@ -77,15 +79,17 @@
       (f.lag_ms > 1 ? " \u00b7 " + f.lag_ms.toFixed(0) + " ms behind" : "");
     if (f.breath !== null && f.breath !== undefined) {
       $("level").style.width = Math.min(100, 100 * f.breath).toFixed(1) + "%";
-      $("breath-text").textContent = "level " + f.breath.toFixed(2) + (data.breath ? " \u00b7 " + data.breath.name : "");
+      const source = data.breath ? " \u00b7 " + data.breath.name : "";
+      $("breath-text").textContent = "level " + f.breath.toFixed(2) + source;
       ds.breath = f.breath.toFixed(4);
     }
     $("winds").textContent = (f.wind || []).map((w) => w.name + " " + w.speed.toFixed(2) + " m/s").join(", ");
+    ds.wind = JSON.stringify(f.wind || []);
   }
 
   // ---- sound: each block scheduled right after the one before --------------------------------------------------
 
-  let audio = null, playhead = 0, blocks = 0;
+  let audio = null, playhead = 0, blocks = 0, scheduled = 0; // scheduled: s of sound
 
   function audioContext() {
     if (!audio && (window.AudioContext || window.webkitAudioContext)) {
@@ -97,6 +101,7 @@
   function play(block) {
     blocks++;
     ds.audioBlocks = String(blocks);
+    if (blocks === 1) ds.audioFrom = block.time.toFixed(4); // s: the scene time of the first block this page had
     const ctx = audioContext();
     if (!ctx) return;
     if (ctx.state !== "running") { $("sound").hidden = false; return; } // refused until the user asks
@@ -113,6 +118,8 @@
     source.start(when);
     playhead = when + n / block.rate;
     ds.audioPlayed = String((Number(ds.audioPlayed) || 0) + 1);
+    scheduled += n / block.rate;
+    ds.audioSeconds = scheduled.toFixed(6);
   }
 
   $("sound").addEventListener("click", () => {

@@ -324,3 +324,94 @@ def test_the_live_page_takes_in_a_new_result_by_itself(tmp_path):
         server.close()
     assert 'data-result="2"' in dom, dom[-3000:]
     assert "result #2" in dom
+
+
+# ---- the mechanism: what the page draws besides the surfaces (runtime/viewer/mechanism.py) ---------------------
+
+def at_rest(scene) -> dict:
+    """One frame: every body where the scene puts it."""
+    value = lambda e: np.asarray(getattr(e, "value", e), float)  # noqa: E731
+    return {"time": np.zeros(1), "bodies": np.array([b.name for b in scene.bodies]),
+            "position": np.array([[value(b.position) for b in scene.bodies]]),
+            "orientation": np.array([[value(b.orientation) for b in scene.bodies]])}
+
+
+def test_the_mobile_hangs_by_a_wire_from_each_surface_to_its_joint():
+    scene = load_scene(SCENES / "mobile.isaac").scene
+    arrays = at_rest(scene)
+    data = viewer_data(scene, arrays)
+    names, position = list(arrays["bodies"]), arrays["position"][0]
+    joints = data["joints"]
+    assert len(joints) == 7  # three rods and four discs, each on a ball joint
+    wires = {}
+    for joint in joints:
+        (hung, holder) = joint["ends"]
+        # both anchors are the same world point (the bodies start unturned)
+        world = [position[end["body"]] + end["anchor"] for end in (hung, holder)]
+        assert np.allclose(world[0], world[1], atol=1e-12)
+        # the holder's anchor is on (or in) it: no wire; the hung body's wire starts on its surface
+        assert holder["attach"] == pytest.approx(holder["anchor"])
+        wires[names[hung["body"]]] = float(np.linalg.norm(np.subtract(hung["anchor"], hung["attach"])))
+    # a disc's wire is `wire` (4 cm) long; a rod's is `drop` (12 cm) less the rod's half thickness (2.5 mm)
+    assert wires == {"top.left.plate": pytest.approx(0.04), "mid.left.plate": pytest.approx(0.04),
+                     "low.left.plate": pytest.approx(0.04), "last.plate": pytest.approx(0.04),
+                     "top.rod": pytest.approx(0.1175), "mid.rod": pytest.approx(0.1175),
+                     "low.rod": pytest.approx(0.1175)}
+    # no plane: a floor under the lowest disc, facing up
+    ground = data["ground"]
+    assert ground["plane"] == -1 and ground["normal"] == [0.0, 1.0, 0.0]
+    assert ground["point"][1] < position[:, 1].min() - 0.08
+
+
+def test_gears_have_teeth_of_one_pitch_that_mesh():
+    from isaac_runtime.viewer.mechanism import SMALL_GEAR_TEETH, gear_teeth
+
+    scene = load_scene(SCENES / "gears.isaac").scene
+    teeth = gear_teeth(scene)
+    (drive,), (wheel,) = teeth["drive"], teeth["wheel"]
+    assert drive[1:] == (0.1, SMALL_GEAR_TEETH) and wheel[1:] == (0.3, 3 * SMALL_GEAR_TEETH)  # radii 1 : 3
+    data = viewer_data(scene, at_rest(scene))
+    decode = lambda text, dtype: np.frombuffer(base64.b64decode(text), dtype)  # noqa: E731
+    module = 2 * math.pi * 0.1 / SMALL_GEAR_TEETH / math.pi  # the same on both: pitch / pi
+    for body in data["bodies"]:
+        if body["name"] in ("drive", "wheel"):
+            vertices = decode(body["positions"], "<f4").reshape(-1, 3)
+            radius = {"drive": 0.1, "wheel": 0.3}[body["name"]]
+            # the tips reach an addendum (one module) past the pitch circle
+            assert np.hypot(vertices[:, 0], vertices[:, 1]).max() == pytest.approx(radius + module, rel=1e-5)
+
+
+def test_a_spring_is_drawn_between_its_two_points():
+    scene = load_text("scene s { body a sphere { radius 5 cm  mass 1 kg  at (0, 0, 0) }  force pull "
+                      "spring(a @ (0, 5 cm, 0), (0, 1, 0)) { stiffness 50 N/m } }").scene
+    data = viewer_data(scene, at_rest(scene))
+    assert data["springs"] == [{"bodies": [0, -1], "points": [[0.0, 0.05, 0.0], [0.0, 1.0, 0.0]],
+                                "type": "spring"}]
+    # a static plane facing up is the ground
+    bounce = load_scene(SCENES / "bounce.isaac").scene
+    names = [b.name for b in bounce.bodies]
+    assert viewer_data(bounce, at_rest(bounce))["ground"]["plane"] == names.index("floor")
+
+
+@needs_chromium
+def test_the_viewer_draws_the_mobiles_wires_and_their_shadows_on_a_grid(tmp_path):
+    scene = load_scene(SCENES / "mobile.isaac").scene
+    arrays = at_rest(scene)
+    page = write_viewer(tmp_path / "viewer.html", scene, arrays)
+    data = page_data(page)
+    camera, names, position = data["cameras"][0], list(arrays["bodies"]), arrays["position"][0]
+    image = screenshot(page, "t=0&ui=0", tmp_path / "mobile.png").astype(int)
+    for joint in data["joints"]:  # halfway along each rod's wire, the wire (light grey on the dark background)
+        hung = joint["ends"][0]
+        if names[hung["body"]].endswith(".rod"):
+            middle = position[hung["body"]] + (np.add(hung["anchor"], hung["attach"]) / 2)
+            col, row = (int(round(c)) for c in project(camera, middle))
+            assert image[row - 1:row + 2, col - 1:col + 2].max() > 120, names[hung["body"]]
+    # the scene has no light: the shadows fall from above and a little in front (draw.js keyLight), each disc's
+    # centre cast along that direction onto the floor (y = 0) is darker than the floor beside it
+    light = np.array([0.0, 1.0, 0.45]) / np.linalg.norm([0.0, 1.0, 0.45])
+    for name in ("top.left.plate", "mid.left.plate", "low.left.plate", "last.plate"):
+        centre = position[names.index(name)]
+        col, row = (int(round(c)) for c in project(camera, centre - centre[1] / light[1] * light))
+        shadow, floor = image[row, col].sum(), min(image[row, col + 60].sum(), image[row - 25, col].sum())
+        assert shadow < floor - 15, name
