@@ -144,11 +144,24 @@ def probe_capacity(until: float, step: float, every: int) -> int:
 
 def run_isaac(scene, solver: str, step: float, until: float, probe: bool = True, repeat: bool = True) -> Outcome:
     """Step `scene` from its start to `until` with one Simulation.advance_to (the step is the one asked for, cut
-    only at constraint switches), probing the state; best wall time of up to REPEATS runs when a run is short."""
-    from isaac_runtime.simulation import NumericalError, Simulation
-
+    only at constraint switches). As for the peers (peers.py): the errors from a pass that probes the state (an
+    observer: the steps are then taken one call at a time), the time from the best of up to REPEATS passes
+    without it (many steps per call of the compiled loop, as a run takes them)."""
     integrator = scene.solver.integrator if solver == "dynamics" else "xpbd"
     out = Outcome("isaac", solver, integrator, step)
+    if not probe:
+        return _isaac_passes(scene, solver, step, until, False, repeat, out)
+    probed = _isaac_passes(scene, solver, step, until, True, False, Outcome("isaac", solver, integrator, step))
+    if probed.status != "ok":  # a run that fails is timed as it failed, once
+        return probed
+    timed = _isaac_passes(scene, solver, step, until, False, repeat, out)
+    timed.trajectory = probed.trajectory
+    return timed
+
+
+def _isaac_passes(scene, solver: str, step: float, until: float, probe: bool, repeat: bool, out: Outcome) -> Outcome:
+    from isaac_runtime.simulation import NumericalError, Simulation
+
     best = math.inf
     for attempt in range(REPEATS if repeat else 1):
         try:

@@ -3,9 +3,10 @@ integrator and step size, with the peers (peers.py) run side by side at the same
 
 For every case and step h (1e-2 .. 1e-4 s) the runs follow one another in one process, ours first (dynamics
 rk4, midpoint, euler; procedural), then MuJoCo and PyBullet: a load spike on a shared machine hits neighbours
-alike. A run is one Simulation.advance_to from the scene's start to the case's end, the state probed every
-~1 ms; time is the wall time of the run (best of three when it is shorter than a second), also given as wall
-seconds per simulated second ("cost", the x axis of the plot) and per step.
+alike. A run is one Simulation.advance_to from the scene's start to the case's end: once with the state probed
+every ~1 ms for the errors, then without the probe for the time (best of three when it is shorter than a
+second; the probe is a per-step observer, which takes the steps one call at a time), as the peers are timed;
+also given as wall seconds per simulated second ("cost", the x axis of the plot) and per step.
 
 Writes work_precision.csv (one row per run), peer_ratios.csv (peers.py: ratios at equal step and at equal
 error) and work_precision.png (one panel per error: error against cost, a line per configuration through its
