@@ -13,8 +13,10 @@ limit, when lower) names the constraints that keep it, with those that share a b
 and in report.json, and in the check (`constraints`).
 
 Before the first step (`unsatisfiable`), constraints that no pose of the bodies satisfies within the limit are
-refused (exit 2, at the first of them, naming all): the pose that comes closest is found by Gauss-Newton on the
-rows of each epoch, and what it leaves, out of the range of J, is an error no run could remove.
+found: the pose that comes closest is found by Gauss-Newton on the rows of each epoch, and what it leaves, out of
+the range of J, is an error no run could remove. They are a warning at the first of them, naming all, and the run
+goes on (it breaks the tolerance: exit 3); refused (exit 2, `hopeless`) when a constraint cannot act at all at the
+start (an axis along the direction it must be perpendicular to), or when the errors left are past a blow-up.
 """
 from __future__ import annotations
 
@@ -367,6 +369,22 @@ def _nudged(y, dynamic):
     """The state with each dynamic body turned by FEASIBILITY_NUDGE about a fixed, skew axis."""
     axis = np.array([0.6, -0.48, 0.64])
     return _moved(y, dynamic, np.tile(np.concatenate((np.zeros(3), FEASIBILITY_NUDGE * axis)), len(dynamic)))
+
+
+def hopeless(found: dict) -> bool:
+    """Whether constraints that cannot all hold cannot even be run: one that cannot act at the start, or errors in
+    the closest pose at or above what the step loop stops as a blow-up (core/record.RUNAWAY_CONSTRAINT_ERROR)."""
+    from .core.record import RUNAWAY_CONSTRAINT_ERROR
+
+    return bool(found.get("stuck")) or max(found["errors"].values(), default=0.0) >= RUNAWAY_CONSTRAINT_ERROR
+
+
+def unsatisfiable_warning(scene, found: dict) -> str:
+    """The same finding as a warning of the plan (`file:line:col: message; hint`): the run goes on, names them
+    again when it ends, and breaks the tolerance (exit 3)."""
+    diagnostic = unsatisfiable_error(scene, found).diagnostics[0]
+    where = f"{diagnostic.pos}: " if diagnostic.pos is not None else ""
+    return f"{where}{diagnostic.message}; {diagnostic.hint}"
 
 
 def unsatisfiable_error(scene, found: dict):

@@ -66,10 +66,14 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     if options.verbosity > 0:
         print(plan.describe(), file=sys.stderr)
     sim = Simulation(plan)
-    # constraints no pose satisfies within the tolerance: refused before the first step
+    # constraints that pull against each other: a warning at the first, naming them all, and the run goes on (it
+    # breaks the tolerance: exit 3); refused before the first step (exit 2) when no run could get anywhere: a
+    # constraint that cannot act at the start (an axis along the direction it must be perpendicular to), or errors
+    # that the step would stop at once as a blow-up
     found = checks.unsatisfiable(sim, options.max_constraint_error)
-    if found is not None:
+    if found is not None and checks.hopeless(found):
         raise checks.unsatisfiable_error(scene, found)
+    plan_warnings = [checks.unsatisfiable_warning(scene, found)] if found is not None else []
     audio = plan.audio.record(sim) if plan.audio is not None else None
     recorder = Recorder(plan.frame_times, plan.names)
     error = None
@@ -87,7 +91,7 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     with np.errstate(all="ignore"), warnings.catch_warnings():  # a blown-up run's figures are NaN: null in JSON
         warnings.simplefilter("ignore", RuntimeWarning)
         report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
-    report["warnings"] = list(options.scene_warnings) + report["warnings"]
+    report["warnings"] = list(options.scene_warnings) + plan_warnings + report["warnings"]
     conflict = _conflicts(sim, recorder, options.max_constraint_error) if error is None else None
     if conflict is not None:
         report["warnings"].append(checks.conflict_warning(conflict))
