@@ -237,7 +237,8 @@ class Collider:
         turn after which it is looked at again: before the gap of its nearest other feature can close (a
         rocking box's lifted edge: a turn of a brings a point at most reach * a nearer)."""
         s = self.sim.state
-        self.lasting.update(self._touching(self.scan(always=True)), s.x, s.q, s.v, s.w)
+        self.lasting.update(self._touching(self.scan(always=True)), s.x, s.q, s.v, s.w, self.resting_speed,
+                            self.plan.step)
         pairs = self.sim.compiled.model.pairs
         touching = np.flatnonzero(pairs.state == 1)
         if not len(touching):

@@ -14,6 +14,8 @@ The pair states the kernel watches between looks (core/model.py Pairs) are writt
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,7 +91,7 @@ class ContactSet:
 
     # -- what the collision stage found -----------------------------------------------------------------
 
-    def update(self, found, x, q, v, w) -> None:
+    def update(self, found, x, q, v, w, bounced: float = math.inf, step: float = 0.0) -> None:
         """The contacts of a look at the state (x, q, v, w) after its impulses: `found` (response.Contacts with
         features, or None). Touching points that do not part are kept (a known one as it was, a new one as its
         slip says), and so are points inside the other body (deeper than REJOIN_DEPTH), the rest dropped; a
@@ -104,7 +106,10 @@ class ContactSet:
                 n = found.normal[i]
                 if local_feature(found.feature[i]) >= FCL_POINT:
                     continue  # fcl's point somewhere in an overlap (an edge across an edge): impulses only
-                deep = found.depth[i] > REJOIN_DEPTH
+                # a point that bounced (parting faster than `bounced`, the resting speed) and is out within one
+                # step is let go however deep it is: an impact found at a step's end, not yet rewound
+                out_in_a_step = n @ u > bounced and n @ u * step >= found.depth[i]
+                deep = found.depth[i] > REJOIN_DEPTH and not out_in_a_step
                 # a point inside the other body is held (its row puts it back on the surface), parting or not
                 if n @ u > SEPARATING_SPEED and not deep:
                     continue

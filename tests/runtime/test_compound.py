@@ -141,12 +141,11 @@ def test_a_part_off_the_centre_turns_the_body_as_the_impulses_lever_arm_says():
     assert v[1] == pytest.approx(-G * first["time"] + j / m - G * (stop - first["time"]), rel=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="known defect of the collision stage (runtime/collide/contacts.py update): an "
-                   "impact found at the end of a step, 1e-7 .. 1e-6 m deep (under TOI_TOLERANCE, so not rewound), "
-                   "keeps its point as a contact although it bounced, and the contact's row takes the bounce away")
 def test_a_bounce_found_at_the_end_of_a_step_keeps_its_restitution():
     """The knob's impact of the test above, with the run stopped 1 ms after it, off the step grid: the steps are
-    then a little shorter (advance_to shares the span equally), and the impact falls 7e-8 s before a step's end."""
+    then a little shorter (advance_to shares the span equally), and the impact falls 7e-8 s before a step's end,
+    found 1e-7 .. 1e-6 m deep (not rewound). Its point parts faster than a resting contact and is out within a
+    step: it is let go (runtime/collide/contacts.py update), not held as a contact whose row takes the bounce."""
     sim = Simulation.from_text(KEY)
     sim.advance_to(fall_time(0.5) + 0.001)
     j, arm, _ = knob_impulse(sim.events[0]["time"])
