@@ -40,11 +40,38 @@ def _ints(values) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(values, dtype=np.int64).reshape(-1))
 
 
+# structures already built, by what they are built from (a contact set that comes back, as an escapement's does at
+# every tick, is not analysed again); a few, since a long chain's structure is large
+_BUILT: dict = {}
+BUILT_KEPT = 32
+
+
 def build_active(cons, active_rows: np.ndarray, dynamic: np.ndarray, held=None, dense: bool = False) -> Active:
     """The Active structure of the global rows `active_rows` of the model's constraints `cons`; dynamic (n+1,)
     marks the bodies with a mass (the world row is not). held: (len(active_rows),) initial flags, in the order of
-    active_rows (default: none held). dense: L's pattern full (every row coupled to every other)."""
+    active_rows (default: none held). dense: L's pattern full (every row coupled to every other).
+
+    The structure depends only on the rows, their instances, those instances' bodies and which bodies are
+    dynamic: one built before from the same is reused (its arrays are read-only to the kernels), with fresh held
+    flags (the one array the kernels write)."""
     active_rows = np.asarray(active_rows, dtype=np.int64)
+    instances = cons.row_instance[active_rows]
+    key = (dense, len(cons.row_instance), active_rows.tobytes(), instances.tobytes(), cons.body[instances].tobytes(),
+           np.asarray(dynamic, np.bool_).tobytes())
+    act = _BUILT.get(key)
+    if act is None:
+        act = _build(cons, active_rows, dynamic, dense)
+        if len(_BUILT) >= BUILT_KEPT:
+            _BUILT.clear()
+        _BUILT[key] = act
+    flags = np.zeros(len(act.rows), dtype=np.bool_)
+    if held is not None:
+        flags[act.local[active_rows]] = np.asarray(held, bool)
+    return act._replace(held=flags)
+
+
+def _build(cons, active_rows: np.ndarray, dynamic: np.ndarray, dense: bool) -> Active:
+    """build_active's structure, analysed (its held flags all False)."""
     instances = list(dict.fromkeys(cons.row_instance[active_rows].tolist()))
     order = minimum_degree(instances, cons.body, dynamic)
     rows_of = defaultdict(list)
@@ -58,10 +85,6 @@ def build_active(cons, active_rows: np.ndarray, dynamic: np.ndarray, held=None, 
     ci, cj, si, sj, dest = _couplings(slots, Lp, Li)
     global_rows = np.asarray(rows, np.int64)
     flags = np.zeros(m, dtype=np.bool_)
-    if held is not None:
-        position = {r: i for i, r in enumerate(rows)}
-        for r, h in zip(active_rows.tolist(), np.asarray(held, bool).tolist()):
-            flags[position[r]] = h
     local = np.full(len(cons.row_instance), -1, np.int64)
     local[global_rows] = np.arange(m)
     return Active(_ints(sorted(set(instances))), _ints(rows), flags, local, Lp, Li, Rp, Rk, Rpos, ci, cj,
