@@ -16,7 +16,7 @@ from .diagnostics import Reporter, SceneError, SourcePos, did_you_mean
 from .expand import Decl, Expansion
 from .files import refused_assets
 from .meshfile import mesh_problem
-from .lower_constraints import ConstraintLowerer
+from .lower_constraints import ConstraintLowerer, lengths_over_first_minute
 from .origins import setting_origins
 from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, is_table, ref_name, written_with
 from .props import Props
@@ -584,8 +584,7 @@ def _constant_or_path(node):
 def _never_zero(node: E.Expr, props: Props, name: str) -> E.Expr:
     """A direction that follows t is made a unit vector at each instant; it must not pass through zero (checked
     over the first minute)."""
-    for t in np.linspace(0.0, 60.0, 241):
-        length = float(np.linalg.norm(E.evaluate(node, {"t": float(t)})))
+    for t, length in lengths_over_first_minute(node):
         if not length > 1e-12 or not math.isfinite(length):
             raise props.lowerer.fail(f"`{name}` must not be the zero vector (it is {length:.3g} long at t = {t:g} s)",
                                      props.node(name), "a direction of time, e.g. `(cos(t), 0, sin(t))`")

@@ -27,6 +27,13 @@ FORCE_PROPS = {"stiffness": "N/m", "rest": "rest length", "damping": "N*s/m", "f
 LIBRARY = ("nail", "point", "orient", "plane", "gear", "rope", "weld") + tuple(ELEMENTS)
 
 
+def lengths_over_first_minute(node):
+    """(t, |v(t)|) of a vector expression of t every 0.25 s over the first minute: where a direction that follows
+    t is checked (to stay of length 1 in a row, not to pass through zero in a wind)."""
+    for t in np.linspace(0.0, 60.0, 241):
+        yield float(t), float(np.linalg.norm(E.evaluate(node, {"t": float(t)})))
+
+
 class ConstraintLowerer:
     def __init__(self, scene):
         self.scene = scene  # the SceneLowerer: bodies, name resolution
@@ -186,8 +193,7 @@ class ConstraintLowerer:
 
     def _unit_of_time(self, node, tree, decl):
         """A world direction of time must stay a unit vector (checked over the first minute)."""
-        for t in np.linspace(0.0, 60.0, 241):
-            length = float(np.linalg.norm(E.evaluate(node, {"t": float(t)})))
+        for t, length in lengths_over_first_minute(node):
             if abs(length - 1.0) > 1e-9:
                 raise decl.lowerer.fail(f"a direction that changes over time must stay of length 1 (it is "
                                         f"{length:.6g} at t = {t:g} s)", tree,

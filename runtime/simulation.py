@@ -23,7 +23,7 @@ from .core import model as M
 from .core.entries import row_errors, state_constraint_error, state_energy
 from .core.jit import CompileNotice
 from .core.record import RUNAWAY_CONSTRAINT_ERROR, Frames
-from .dynamics.integrate import CONTACT, DONE, RUNAWAY_BODY
+from .core.record import CONTACT, DONE, RUNAWAY_BODY
 from .kinematics import on_path, window_switches
 from .plan import Plan, PlanOptions, compile_plan
 

@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import math
 
+from .bodies import turn
 from .jit import kernel
+from .vec import quat_to_matrix
 
 # a pivot below this fraction of its diagonal marks a row dependent on the ones before it
 RANK_RTOL = 1e-10
@@ -143,3 +145,20 @@ def apply_impulses(act, cons, MJ, lam, scale, out):
                 continue
             for c in range(6):
                 out[b, c] += MJ[r, s, c] * l
+
+
+@kernel
+def move_along(act, cons, bodies, MJ, lam, delta, y, R):
+    """y moved by dx = M^-1 J^T lam (a position projection's step): x += dx_lin, q turned by dx_ang, R (n+1,3,3)
+    kept current; delta (n+1,6) scratch."""
+    for b in range(len(y)):
+        for c in range(6):
+            delta[b, c] = 0.0
+    apply_impulses(act, cons, MJ, lam, 1.0, delta)
+    for b in range(len(y) - 1):
+        if not bodies.dynamic[b]:
+            continue
+        for c in range(3):
+            y[b, c] += delta[b, c]
+        turn(y, b, delta[b, 3], delta[b, 4], delta[b, 5])
+        quat_to_matrix(y[b, 3], y[b, 4], y[b, 5], y[b, 6], R, b)

@@ -81,14 +81,7 @@ def _add_friction(m, act, s, y, acc):
     turned_back = sliding_forces(act, m.constraints, s.param, y, s.R, s.lam, act.local, s.friction)
     if turned_back >= 0 and s.counters[COUNTER_TURNED_BACK] == 0:
         s.counters[COUNTER_TURNED_BACK] = turned_back + 1
-    bodies = m.bodies
-    for b in range(len(y) - 1):
-        if not bodies.dynamic[b]:
-            continue
-        im, I = bodies.inv_mass[b], s.inv_inertia
-        for c in range(3):
-            acc[b, c] += im * s.friction[b, c]
-            acc[b, 3 + c] += I[b, c, 0] * s.friction[b, 3] + I[b, c, 1] * s.friction[b, 4] + I[b, c, 2] * s.friction[b, 5]
+    _friction_accelerations(m, s, y, acc, 1.0)
     cons = m.constraints
     for i in range(len(act.instances)):
         k = act.instances[i]
@@ -98,16 +91,17 @@ def _add_friction(m, act, s, y, acc):
 
 
 @kernel
-def _remove_friction(m, s, y, acc):
-    """acc -= M^-1 s.friction (undo _add_friction)."""
+def _friction_accelerations(m, s, y, acc, sign):
+    """acc += sign M^-1 s.friction for the dynamic bodies (sign -1: _add_friction undone)."""
     bodies = m.bodies
     for b in range(len(y) - 1):
         if not bodies.dynamic[b]:
             continue
         im, I = bodies.inv_mass[b], s.inv_inertia
         for c in range(3):
-            acc[b, c] -= im * s.friction[b, c]
-            acc[b, 3 + c] -= I[b, c, 0] * s.friction[b, 3] + I[b, c, 1] * s.friction[b, 4] + I[b, c, 2] * s.friction[b, 5]
+            acc[b, c] += sign * (im * s.friction[b, c])
+            acc[b, 3 + c] += sign * (I[b, c, 0] * s.friction[b, 3] + I[b, c, 1] * s.friction[b, 4]
+                                     + I[b, c, 2] * s.friction[b, 5])
 
 
 @inlined
@@ -135,7 +129,7 @@ def constrain(m, act, s, y, table, j, acc):
             size = max(size, abs(s.lam[i]))
         if change <= FRICTION_TOL * size or iteration == FRICTION_ITERATIONS - 1:
             break
-        _remove_friction(m, s, y, acc)
+        _friction_accelerations(m, s, y, acc, -1.0)
     apply_impulses(act, cons, s.MJ, s.lam, 1.0, acc)
 
 

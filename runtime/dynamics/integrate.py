@@ -12,27 +12,24 @@ RUNAWAY_SPEED). The time table has 2 rows per step (t, t + h/2, t + h at rows 2i
 from t0 (step i at t0 + i h, no accumulated sum); after step frame_step[f] (0: before the first) it records frame
 f: frames.y[f] the state, frames.energy[f], frames.error[f] the largest |C| of the active rows and
 frames.worst[f] that row. status (4,) <- (code, step, body or row or contact, detail): code 0 done,
-RUNAWAY_BODY, RUNAWAY_ROW, CONTACT (the collision stage must look after that step: detail the change,
+RUNAWAY_BODY, RUNAWAY_ROW, CONTACT (core/record.py after_step; CONTACT: the collision stage must look, detail the change,
 core/contact.py). s.start holds the state at the start of the last step. Returns the steps taken.
 """
 from __future__ import annotations
 
 import math
 
-from ..core.bodies import copy_state, normalize_quaternions, place_kinematic, rotations, runaway_body
-from ..core.contact import add_impulses, look_after_step
+from ..core.bodies import copy_state, normalize_quaternions, place_kinematic
+from ..core.contact import add_impulses
 from ..core.data import COUNTER_TURNED_BACK
 from ..core.jit import entry, inlined, kernel
-from ..core.record import RUNAWAY_CONSTRAINT_ERROR, record
+from ..core.record import DONE, after_step, record
 from .accelerations import accelerations
 from .projection import project, settle_rows
 
 RK4, MIDPOINT, EULER = 0, 1, 2
 INTEGRATORS = {"rk4": RK4, "midpoint": MIDPOINT, "euler": EULER}
 GRID = 2  # time-table rows per step
-# status codes (a blow-up: a speed beyond core/bodies.RUNAWAY_SPEED, or a constraint error beyond
-# core/record.RUNAWAY_CONSTRAINT_ERROR)
-DONE, RUNAWAY_BODY, RUNAWAY_ROW, CONTACT = 0, 1, 2, 3
 
 @inlined
 def _slope(m, act, s, y, table, j, k):
@@ -155,20 +152,9 @@ def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, e
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
         one_step(m, act, s, y, table, integrator, GRID * step, h)
-        body = runaway_body(m.bodies, y)
-        if body >= 0:
-            status[0], status[1], status[2] = RUNAWAY_BODY, step + 1, body
-            return step + 1
         if len(m.pairs.a):
             add_impulses(act, m.constraints, s.lam, act.local, h, s.impulse)
-            code, which = look_after_step(m, act, s, y)
-            if code != 0:
-                status[0], status[1], status[2], status[3] = CONTACT, step + 1, which, code
-                return step + 1
-        while f < len(frame_step) and frame_step[f] == step + 1:
-            record(m, act, s, y, table, GRID * (step + 1), frames, f)
-            if not frames.error[f] <= RUNAWAY_CONSTRAINT_ERROR:
-                status[0], status[1], status[2] = RUNAWAY_ROW, step + 1, frames.worst[f]
-                return step + 1
-            f += 1
+        taken, f = after_step(m, act, s, y, table, GRID * (step + 1), step, frame_step, frames, f, status)
+        if taken >= 0:
+            return taken
     return steps

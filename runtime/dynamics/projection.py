@@ -18,11 +18,10 @@ from __future__ import annotations
 
 import math
 
-from ..core.bodies import rotations, turn, world_inverse_inertia
-from ..core.jit import inlined, kernel
+from ..core.bodies import rotations, world_inverse_inertia
+from ..core.jit import inlined
 from ..core.rows import evaluate_rows, row_motion
-from ..core.solve import apply_impulses, assemble, factor, inverse_mass_times_J, substitute
-from ..core.vec import quat_to_matrix
+from ..core.solve import apply_impulses, assemble, factor, inverse_mass_times_J, move_along, substitute
 
 # a held row whose |C| (m or rad) or |dC/dt| (per second) is above this after a step is projected
 PROJECT_POSITION = 1e-14
@@ -46,22 +45,6 @@ def _largest_errors(m, act, s, y):
             worst_c = max(worst_c, abs(s.C[r]))
         worst_v = max(worst_v, abs(row_motion(cons, r, y, y, s.J, 7) + s.ct[r]))
     return worst_c, worst_v
-
-
-@inlined
-def _move(m, act, s, y, lam):
-    """y: x += dx_lin, q turned by dx_ang, dx = M^-1 J^T lam; R kept current."""
-    for b in range(len(y)):
-        for c in range(6):
-            s.delta[b, c] = 0.0
-    apply_impulses(act, m.constraints, s.MJ, lam, 1.0, s.delta)
-    for b in range(len(y) - 1):
-        if not m.bodies.dynamic[b]:
-            continue
-        for c in range(3):
-            y[b, c] += s.delta[b, c]
-        turn(y, b, s.delta[b, 3], s.delta[b, 4], s.delta[b, 5])
-        quat_to_matrix(y[b, 3], y[b, 4], y[b, 5], y[b, 6], s.R, b)
 
 
 @inlined
@@ -97,7 +80,7 @@ def project(m, act, s, y, table, j, fresh):
             r = act.rows[i]
             s.rhs[i] = -s.C[r] if act.held[i] and not cons.velocity_only[r] else 0.0
         substitute(act, s.Lx, s.dropped, s.rhs, s.dlam)  # (s.lam keeps the step's forces: contacts read them)
-        _move(m, act, s, y, s.dlam)
+        move_along(act, cons, m.bodies, s.MJ, s.dlam, s.delta, y, s.R)
         evaluate_rows(m, act, s, y, table, j)
         worst_c, worst_v = _largest_errors(m, act, s, y)
     if worst_v > PROJECT_VELOCITY:

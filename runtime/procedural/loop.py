@@ -12,15 +12,14 @@ from __future__ import annotations
 
 import math
 
-from ..core.bodies import copy_state, place_kinematic, rotations, runaway_body
-from ..core.contact import add_impulses, friction_impulses, look_after_step
+from ..core.bodies import copy_state, place_kinematic, rotations
+from ..core.contact import add_impulses, friction_impulses
 from ..core.data import COUNTER_TURNED_BACK
 from ..core.forces import add_loads, add_springs, weights
 from ..core.jit import entry, kernel
-from ..core.record import RUNAWAY_CONSTRAINT_ERROR, record
+from ..core.record import DONE, after_step, record
 from ..core.rows import apply_drivers
 from ..core.timetable import TIME
-from ..dynamics.integrate import CONTACT, DONE, RUNAWAY_BODY, RUNAWAY_ROW
 from ..wind.kernels import wind_relax
 from .project import direct, start_directions, sweep
 from .substep import SHAKE_MAX_TURN, predict, put_back
@@ -91,19 +90,7 @@ def run(m, act, sw, curves, s, y, table, h, steps, substeps, iterations, all_at_
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
         procedural_step(m, act, sw, curves, s, y, table, substeps * step, h, substeps, iterations, all_at_once)
-        body = runaway_body(m.bodies, y)
-        if body >= 0:
-            status[0], status[1], status[2] = RUNAWAY_BODY, step + 1, body
-            return step + 1
-        if len(m.pairs.a):
-            code, which = look_after_step(m, act, s, y)
-            if code != 0:
-                status[0], status[1], status[2], status[3] = CONTACT, step + 1, which, code
-                return step + 1
-        while f < len(frame_step) and frame_step[f] == step + 1:
-            record(m, act, s, y, table, substeps * (step + 1), frames, f)
-            if not frames.error[f] <= RUNAWAY_CONSTRAINT_ERROR:
-                status[0], status[1], status[2] = RUNAWAY_ROW, step + 1, frames.worst[f]
-                return step + 1
-            f += 1
+        taken, f = after_step(m, act, s, y, table, substeps * (step + 1), step, frame_step, frames, f, status)
+        if taken >= 0:
+            return taken
     return steps

@@ -19,7 +19,7 @@ from collections import namedtuple
 from ..core.bodies import rotations, turn, world_inverse_inertia
 from ..core.jit import kernel
 from ..core.rows import apply_drivers, instance_rows, write_rows
-from ..core.solve import assemble, factor, inverse_mass_times_J, substitute
+from ..core.solve import assemble, factor, inverse_mass_times_J, move_along, substitute
 from ..core.vec import quat_to_matrix, rotate
 from .substep import MIN_ALIGNMENT, _effective_mass, _solve_small, velocity_row_error
 
@@ -197,30 +197,7 @@ def direct(m, act, curves, s, y, t, hs, iterations, shake):
         substitute(act, s.Lx, s.dropped, s.rhs, s.dlam)
         for i in range(len(act.rows)):
             s.lam[i] += s.dlam[i]
-        _move_all(m, act, s, y, s.dlam)
-
-
-@kernel
-def _move_all(m, act, s, y, dlam):
-    cons, bodies = m.constraints, m.bodies
-    for b in range(len(y)):
-        for c in range(6):
-            s.delta[b, c] = 0.0
-    for i in range(len(act.rows)):
-        r = act.rows[i]
-        k = cons.row_instance[r]
-        for slot in range(2):
-            b = cons.body[k, slot]
-            if b >= 0:
-                for c in range(6):
-                    s.delta[b, c] += s.MJ[r, slot, c] * dlam[i]
-    for b in range(len(y) - 1):
-        if not bodies.dynamic[b]:
-            continue
-        for c in range(3):
-            y[b, c] += s.delta[b, c]
-        turn(y, b, s.delta[b, 3], s.delta[b, 4], s.delta[b, 5])
-        quat_to_matrix(y[b, 3], y[b, 4], y[b, 5], y[b, 6], s.R, b)
+        move_along(act, m.constraints, m.bodies, s.MJ, s.dlam, s.delta, y, s.R)
 
 
 @kernel
