@@ -87,15 +87,17 @@ class CompiledPlan:
         return drivers
 
     def _wind(self, plan):
-        from ..wind.kernels import empty_wind_model, wind_model, wind_table
+        from ..wind.kernels import empty_wind_model, speeds_table, wind_model, wind_table
 
         wind = plan.forces.wind
         if wind is None:
             return empty_wind_model(), 0, 0
+        m = len(wind.fields.names)
+        if not any(wind.fields.moves):  # the speeds alone: the kernels read the points and directions of the model
+            return wind_model(wind), self.table.add(m, lambda times: speeds_table(wind, times)), m
         # per wind: its speed, its source point (3) and its direction (3), all of t
-        count = 7 * len(wind.fields.names)
-        column = self.table.add(count, lambda times: wind_table(wind, times))
-        return wind_model(wind), column, count
+        column = self.table.add(7 * m, lambda times: wind_table(wind, times))
+        return wind_model(wind), column, 7 * m
 
     def _collisions(self, plan) -> tuple:
         """(Shapes, Pairs, margin) of the collision stage, padded with the world row; no pairs without one."""

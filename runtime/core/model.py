@@ -18,8 +18,9 @@ ROWS each), so the plan's row metadata (windows, gains, `-` removals) indexes th
                  compliance (M,) the procedural plan's softness, settles (M,) a row may be held (projected)
                  once assembled (not under `stabilization baumgarte`), soft (M,) a relative regularization of
                  the row's diagonal (contacts: core/contact.py)
-    wind         runtime/wind/kernels.WindModel; its winds' speeds s(t), source points and directions are table
-                 columns wind_column .. wind_column + wind_count (wind_kernels.wind_table's layout)
+    wind         runtime/wind/kernels.WindModel; its winds' speeds s(t) are table columns wind_column ..
+                 wind_column + wind_count, followed by their source points and directions when one moves
+                 (wind/kernels.wind_table's layout; without, the kernels read the model's constants)
     shapes, pairs, margin   collision shapes and the pairs the collision stage watches between its calls
                  (below); the contact instances are the last ones of `constraints` (contact.py)
 """
