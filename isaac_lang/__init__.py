@@ -1,1 +1,8 @@
 """isaac_lang: the front end. Scene text -> parse tree -> IR; diagnostics; the command line."""
+
+from .imports import without as _without
+
+# lark imports interegular, when it is installed, only to warn about colliding terminals while it builds a lexer:
+# 40 ms of every command's start, for a check that belongs to writing a grammar, not to reading scenes
+with _without("interegular", why="lark"):
+    import lark  # noqa: E402,F401

@@ -45,8 +45,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
-import scipy.linalg.lapack
 
 # A Cholesky/LU pivot or eigenvalue below RANK_RTOL * max(diag A) counts as zero (rank-deficient system).
 RANK_RTOL = 1e-10
@@ -63,7 +61,15 @@ DENSE_MAX_ROWS = 110
 # sparse/tree 0.33/0.37 ms at 60 rows, 0.44/0.43 at 72, 1.07/0.66 at 120; 2400 ms vs 17 ms at 3000 rows).
 TREE_HUB_ROWS = 72
 
-_POSV = scipy.linalg.lapack.dposv
+
+
+def lapack():
+    """scipy's LAPACK wrappers, imported on first use: importing scipy.linalg takes about 0.1 s (with the numpy
+    modules scipy's array API layer pulls in), which a run that never solves here (no impact, no Python-side
+    solve) should not pay at its start."""
+    import scipy.linalg.lapack
+
+    return scipy.linalg.lapack
 
 
 @dataclass
@@ -195,7 +201,7 @@ def solve_dense(A, rhs) -> tuple[np.ndarray, SolveInfo]:
         return _dense_fallback(A, rhs, "A is zero")
     # LAPACK posv (potrf, then potrs with the factor) directly: what scipy's cho_factor / cho_solve call,
     # without their per-call checks
-    c, lam, info = _POSV(A, rhs, lower=1)
+    c, lam, info = lapack().dposv(A, rhs, lower=1)
     if info != 0:
         return _dense_fallback(A, rhs, "cholesky failed (not positive definite)")
     min_pivot = min(c.diagonal().tolist()) ** 2

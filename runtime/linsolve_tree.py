@@ -7,10 +7,8 @@ from __future__ import annotations
 from collections import deque
 
 import numpy as np
-import scipy.linalg
-import scipy.linalg.lapack
 
-from .linsolve import RANK_RTOL, RESIDUAL_RTOL, SolveInfo, SparsePattern, _dynamic_slots, _relative_residual, apply_inverse_mass, solve_sparse
+from .linsolve import RANK_RTOL, lapack, RESIDUAL_RTOL, SolveInfo, SparsePattern, _dynamic_slots, _relative_residual, apply_inverse_mass, solve_sparse
 
 
 class TreeSolver:
@@ -110,7 +108,7 @@ class TreeSolver:
 
     def _factor(self):
         # LAPACK getrf + getri directly: a third of np.linalg.inv's per-call overhead on 3x3 and 6x6 blocks
-        P, getrf, getri = self.P, scipy.linalg.lapack.dgetrf, scipy.linalg.lapack.dgetri
+        P, getrf, getri = self.P, lapack().dgetrf, lapack().dgetri
         Dinv, L = [None] * self.n_nodes, [None] * self.n_nodes
         links = iter(self.links)
         nxt = next(links, None)

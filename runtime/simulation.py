@@ -20,7 +20,7 @@ import numpy as np
 from .core import data as D
 from .core.build import CompiledPlan
 from .core import model as M
-from .core.entries import row_errors, state_constraint_error, state_energy
+from .core.entries import measure, row_errors, state_constraint_error, state_energy
 from .core.jit import CompileNotice
 from .core.record import RUNAWAY_CONSTRAINT_ERROR, Frames
 from .core.record import CONTACT, DONE, RUNAWAY_BODY
@@ -80,7 +80,7 @@ class Simulation:
         self.state = State.initial(plan)
         self.source = source or {}
         self.events: list = []
-        self._compile_notice = CompileNotice.begin(row_errors, *self._stepper_class(plan).entries)
+        self._compile_notice = CompileNotice.begin(measure, *self._stepper_class(plan).entries)
         self.compiled = CompiledPlan(plan)
         self.stepper = self._stepper_class(plan)(self.compiled, plan)
         switches = list(plan.constraints.switch_times()) if plan.constraints else []
@@ -142,7 +142,7 @@ class Simulation:
     def energy(self) -> float:
         """Kinetic plus gravitational potential energy of the dynamic bodies, J."""
         c = self.compiled
-        return float(state_energy(c.model.bodies, c.scratch.R, self.state.y))
+        return float(state_energy(c.model, c.scratch, self.state.y))
 
     def constraint_errors(self) -> tuple:
         """(max |C| over active position rows, global index of that row or -1) at the current state."""

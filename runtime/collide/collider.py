@@ -194,8 +194,7 @@ class Collider:
 
             c = self.sim.compiled
             out = np.zeros((1, len(c.model.constraints.family), 8))
-            frame_contacts(self.sim._act, c.model.constraints, c.scratch.param, self.sim.state.y, c.scratch.R,
-                           c.scratch.impulse, out)
+            frame_contacts(c.model, self.sim._act, c.scratch, self.sim.state.y, out)
             table = out[0]
         contacts = self.lasting.contacts
         bodies = {k: (contacts[key].a, contacts[key].b, contacts[key].part_a, contacts[key].part_b)

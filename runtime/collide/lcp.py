@@ -21,8 +21,8 @@ Two methods, the cheap one first:
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
-import scipy.linalg.lapack
+
+from ..linsolve import lapack
 
 # PGS stops when no row changes the velocities by more than this fraction of the largest velocity change asked
 # for, max |target - u0| (a sliding block's friction is then right to 1e-8 of itself)
@@ -36,19 +36,16 @@ ACTIVE_SET_PASSES = 6
 # diagonal shift of the direct solve, relative to the largest diagonal entry of W
 REGULARIZATION = 1e-10
 
-_POTRF, _POTRS = scipy.linalg.lapack.dpotrf, scipy.linalg.lapack.dpotrs
-
-
 def cholesky(A):
     """The lower Cholesky factor of A (m,m), or None when A is not positive definite: LAPACK potrf directly,
     what scipy's cho_factor calls, without its per-call checks and wrappers (the same numbers)."""
-    factor, info = _POTRF(A, lower=1, clean=0)
+    factor, info = lapack().dpotrf(A, lower=1, clean=0)
     return factor if info == 0 else None
 
 
 def cholesky_solve(factor, b):
     """A^-1 b (m,) or (m,k) from the factor of `cholesky`: LAPACK potrs (scipy's cho_solve)."""
-    return _POTRS(factor, b, lower=1)[0]
+    return lapack().dpotrs(factor, b, lower=1)[0]
 
 
 def solve(W, u0, target, mu, tangent) -> np.ndarray:
@@ -131,6 +128,8 @@ def _polish(W, u0, target, mu, tangent, lam, tol):
     B = np.array(columns).T
     rows = np.array(rows)
     try:
+        import scipy.linalg  # (on first use, as linsolve.lapack)
+
         z = scipy.linalg.lstsq(W[rows] @ B, target[rows] - u0[rows], lapack_driver="gelsy", check_finite=False)[0]
     except (np.linalg.LinAlgError, ValueError):
         return None

@@ -22,13 +22,14 @@ only; `_refresh_cache` also drops the cache when any file of the compiled core h
 from __future__ import annotations
 
 import hashlib
-import importlib.abc
 import os
 import sys
 import time
 from pathlib import Path
 
 import numba
+
+from isaac_lang.imports import without
 
 OPTIONS = {"error_model": "numpy", "nogil": True, "_nrt": False}
 # the packages whose source the cached entry points are built from
@@ -80,31 +81,18 @@ def _refresh_cache() -> None:
 _refresh_cache()
 
 
-class _WithoutLinearAlgebra(importlib.abc.MetaPathFinder):
-    """While numba loads its implementations: `scipy.linalg` cannot be imported. numba then decides that it has no
-    BLAS (np.dot and np.linalg in compiled code, which the kernels do not use) instead of importing scipy.linalg
-    for it: 0.19 s of the 0.7 s a cached `isaac run` may take. Installed only for that moment."""
-
-    def find_spec(self, name, path=None, target=None):
-        if name == "scipy.linalg" or name.startswith("scipy.linalg."):
-            raise ImportError(f"{name}: not while numba loads (isaac_runtime.core.jit)")
-        return None
-
-
 def _load_numba_implementations() -> None:
-    """numba's target context, initialized now (a first call would do it), without scipy.linalg when nothing has
-    imported it yet."""
+    """numba's target context, initialized now (a first call would do it). While numba loads its implementations,
+    `scipy.linalg` cannot be imported when nothing has imported it yet: numba then decides that it has no BLAS
+    (np.dot and np.linalg in compiled code, which the kernels do not use) instead of importing scipy.linalg for it,
+    0.19 s of the 0.7 s a cached `isaac run` may take."""
     from numba.core.registry import cpu_target
 
     if "scipy.linalg" in sys.modules or "numba.np.arraymath" in sys.modules:
         cpu_target.target_context.refresh()
         return
-    guard = _WithoutLinearAlgebra()
-    sys.meta_path.insert(0, guard)
-    try:
+    with without("scipy.linalg", why="numba's implementations"):
         cpu_target.target_context.refresh()
-    finally:
-        sys.meta_path.remove(guard)
 
 
 _load_numba_implementations()
@@ -123,7 +111,7 @@ class CompileNotice:
     """One line on stderr when a run is about to compile the core (nothing cached yet for the entry points it
     uses), and one when the compiling is over, with how long it took:
 
-        notice = CompileNotice.begin(run, row_errors, ...)    # before the first call of any of them
+        notice = CompileNotice.begin(run, measure, ...)    # before the first call of any of them
         ...                                                   # the calls (the first ones compile)
         notice.end()
     """

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.entries import row_errors
+from ..core.entries import measure, row_errors
 from ..core.model import GEAR, ROPE
 from .loop import run
 from .project import Curves, Sweep
@@ -24,7 +24,7 @@ DIRECT_MAX_ROWS = 64
 
 
 class ProceduralStepper:
-    entries = (run, row_errors)  # the compiled entry points it calls
+    entries = (run, measure)  # the compiled entry points it calls
 
     def __init__(self, compiled, plan):
         options = plan.scene.solver
