@@ -97,8 +97,14 @@ def configured(scene, integrator: str | None = None, substeps: int | None = None
 
 
 def plan_for(scene, solver: str = "dynamics", step: float | None = None, until: float | None = None):
+    """The plan of `scene` at `step`; a step longer than the scene's frames gets frames that long (the plan cuts
+    steps at frames, and a benchmark run records none: the peers' steps are not cut either)."""
+    import dataclasses
+
     from isaac_runtime.plan import PlanOptions, compile_plan
 
+    if step is not None and step * scene.time.frame_rate > 1.0 + 1e-9:
+        scene = dataclasses.replace(scene, time=dataclasses.replace(scene.time, frame_rate=1.0 / step))
     return compile_plan(scene, PlanOptions(solver=solver, step=step, until=until))
 
 
