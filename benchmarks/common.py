@@ -152,7 +152,8 @@ def run_isaac(scene, solver: str, step: float, until: float, probe: bool = True,
     """Step `scene` from its start to `until` with one Simulation.advance_to (the step is the one asked for, cut
     only at constraint switches). As for the peers (peers.py): the errors from a pass that probes the state (an
     observer: the steps are then taken one call at a time), the time from the best of up to REPEATS passes
-    without it (many steps per call of the compiled loop, as a run takes them)."""
+    without it (many steps per call of the compiled loop, as a run takes them). The clock starts once the
+    simulation is ready to step (built, its first epoch entered), as a peer's starts once its model is built."""
     integrator = scene.solver.integrator if solver == "dynamics" else "xpbd"
     out = Outcome("isaac", solver, integrator, step)
     if not probe:
@@ -183,6 +184,9 @@ def _isaac_passes(scene, solver: str, step: float, until: float, probe: bool, re
             p.record(s.t, s.x, s.q, s.v, s.w)
             sim.observers.append(p)
         status = "ok"
+        # ready to step, as a peer is once its model is built: the first epoch entered (its rows' structure and
+        # which of them start on their manifold), no step taken
+        sim.advance_to(sim.plan.start)
         wall, cpu = time.perf_counter(), time.process_time()
         try:
             sim.advance_to(sim.plan.start + until)

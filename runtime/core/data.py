@@ -17,12 +17,17 @@ PACKED = 13
 STAGES = 4  # slopes kept by the integrators (RK4's four)
 
 Scratch = namedtuple("Scratch", "R inv_inertia force torque acc param C J ct bias MJ Jd rhs lam dlam diag work dropped "
-                                "include Lx delta k y0 ys start R0 friction impulse air block counters")
+                                "include Lx target correction delta k y0 ys start R0 friction impulse air block counters")
 # the buffers of one small block (an instance's rows, at most 3) of the procedural projection
 Block = namedtuple("Block", "K rhs x J D dx")
 # counters: [0] evaluations whose solve dropped a dependent row, [1] projections done, [2] 1 + the first sliding
-# contact whose slip a stage of the step found turned back (0: none; core/contact.py)
+# contact whose slip a stage of the step found turned back (0: none; core/contact.py); the factorization kept for
+# the next evaluations (core/solve.py `solve_again`): [3] 1 while Lx holds the factor of the active rows' whole
+# J M^-1 J^T (0: it does not, or it was never made), [4] how many rows that factorization dropped, [5] evaluations
+# still to factor afresh before the kept factor is tried again, [6] the length of the last such wait, [7]
+# evaluations that the kept factor served
 COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_TURNED_BACK = 0, 1, 2
+COUNTER_KEPT, COUNTER_KEPT_DROPPED, COUNTER_WAIT, COUNTER_BACKOFF, COUNTER_REUSED = 3, 4, 5, 6, 7
 
 
 def initial_state(plan) -> np.ndarray:
@@ -45,10 +50,11 @@ def allocate_scratch(n: int, param: np.ndarray, rows: int, fill: int = 1) -> Scr
         C=np.zeros(m), J=np.zeros((m, 2, 6)), ct=np.zeros(m), bias=np.zeros(m), MJ=np.zeros((m, 2, 6)),
         Jd=np.zeros((m, 2, 6)),
         rhs=np.zeros(m), lam=np.zeros(m), dlam=np.zeros(m), diag=np.zeros(m), work=np.zeros(m), dropped=np.zeros(m, np.bool_),
-        include=np.ones(m, np.bool_), Lx=np.zeros(max(fill, 1)), delta=np.zeros((b, 6)),
+        include=np.ones(m, np.bool_), Lx=np.zeros(max(fill, 1)), target=np.zeros(m), correction=np.zeros(m),
+        delta=np.zeros((b, 6)),
         k=np.zeros((STAGES, b, PACKED)), y0=np.zeros((b, PACKED)), ys=np.zeros((b, PACKED)),
         start=np.zeros((b, PACKED)), R0=np.tile(np.eye(3), (b, 1, 1)), friction=np.zeros((b, 6)),
         impulse=np.zeros(max(len(param), 1)), air=np.zeros((b, 4)),
         block=Block(np.zeros((3, 3)), np.zeros(3), np.zeros(3), np.zeros((3, 2, 6)), np.zeros((3, 2, 6)),
                     np.zeros(6)),
-        counters=np.zeros(4, np.int64))
+        counters=np.zeros(8, np.int64))

@@ -25,6 +25,8 @@ Active (a named tuple of arrays, the kernels' view of an epoch):
                           L[j,k] is in the value array
     cp_i, cp_j (c,)       the couplings: local rows (for masks), cp_ri, cp_si, cp_rj, cp_sj their global rows
                           and slots, cp_dest their place in L's value array
+    refine (1,)           how many refinement corrections a kept factorization may take and still cost less than
+                          a fresh one (solve.py solve_again), at most solve.REFINE_STEPS; -1: never keep one
 """
 from __future__ import annotations
 
@@ -33,7 +35,10 @@ from collections import defaultdict, namedtuple
 
 import numpy as np
 
-Active = namedtuple("Active", "instances rows held local Lp Li Rp Rk Rpos cp_i cp_j cp_ri cp_si cp_rj cp_sj cp_dest")
+from .solve import REFINE_STEPS
+
+Active = namedtuple("Active", "instances rows held local Lp Li Rp Rk Rpos cp_i cp_j cp_ri cp_si cp_rj cp_sj cp_dest "
+                               "refine")
 
 
 def _ints(values) -> np.ndarray:
@@ -88,7 +93,19 @@ def _build(cons, active_rows: np.ndarray, dynamic: np.ndarray, dense: bool) -> A
     local = np.full(len(cons.row_instance), -1, np.int64)
     local[global_rows] = np.arange(m)
     return Active(_ints(sorted(set(instances))), _ints(rows), flags, local, Lp, Li, Rp, Rk, Rpos, ci, cj,
-                  _ints(global_rows[ci]), si, _ints(global_rows[cj]), sj, dest)
+                  _ints(global_rows[ci]), si, _ints(global_rows[cj]), sj, dest,
+                  _ints([affordable_corrections(Lp, len(dest))]))
+
+
+def affordable_corrections(Lp: np.ndarray, couplings: int) -> int:
+    """How many corrections of iterative refinement cost less than a fresh factorization, counted in
+    multiply-adds: a fresh one assembles (6 a coupling) and factors (a column's update touches each column k
+    reaching it, about sum_k len_k^2); a try substitutes (2 nnz, forward and back) and multiplies matrix-free
+    (about 30 a row), then each correction does both again. At most solve.REFINE_STEPS; -1: not even the try."""
+    lengths = np.diff(Lp)
+    fresh = 6 * couplings + int(np.sum(lengths * lengths))
+    one = 4 * int(Lp[-1]) + 30 * len(lengths)
+    return int(min(REFINE_STEPS, fresh // max(one, 1) - 1))
 
 
 def minimum_degree(instances: list, body: np.ndarray, dynamic: np.ndarray) -> list:
@@ -192,4 +209,4 @@ def _couplings(slots: dict, Lp: np.ndarray, Li: np.ndarray) -> tuple:
 def empty_active() -> Active:
     z = np.zeros(0, np.int64)
     return Active(z, z, np.zeros(0, np.bool_), z, np.zeros(1, np.int64), z, np.zeros(1, np.int64), z, z, z, z, z, z,
-                  z, z, z)
+                  z, z, z, _ints([-1]))

@@ -16,13 +16,14 @@ from __future__ import annotations
 
 from ..core import model as M
 from ..core.bodies import place_kinematic, rotations, world_inverse_inertia
-from ..core.data import COUNTER_TURNED_BACK
+from ..core.data import (COUNTER_BACKOFF, COUNTER_KEPT, COUNTER_KEPT_DROPPED, COUNTER_RANK, COUNTER_REUSED,
+                         COUNTER_TURNED_BACK, COUNTER_WAIT)
 from ..core.contact import FRICTION_ITERATIONS, FRICTION_TOL, sliding_forces
 from ..core.forces import add_gyroscopic, add_loads, add_springs, weights
 from ..core.jit import entry, inlined, kernel
 from ..core.rows import evaluate_rows, row_motion
 from ..core.timetable import TIME
-from ..core.solve import apply_impulses, assemble, factor, inverse_mass_times_J, substitute
+from ..core.solve import apply_impulses, assemble, factor, inverse_mass_times_J, solve_again, substitute
 from ..wind.kernels import wind_drag
 
 
@@ -104,23 +105,74 @@ def _friction_accelerations(m, s, y, acc, sign):
                                      + I[b, c, 2] * s.friction[b, 5])
 
 
+# after a kept factorization failed to serve (core/solve.py solve_again), evaluations factor afresh for this many
+# before it is tried again; the wait doubles with every failure in a row (a moving chain: a try in 256), up to
+KEPT_WAIT_FIRST, KEPT_WAIT_MOST = 4, 256
+
+
+@inlined
+def _factor_afresh(m, act, s):
+    """Lx <- the factor of the active rows' whole J M^-1 J^T at the evaluated rows, kept for the evaluations after."""
+    cons = m.constraints
+    assemble(act, s.J, s.MJ, s.include, True, cons.soft, s.Lx, s.diag)
+    dropped = factor(act, s.Lx, s.diag, s.work, s.dropped)
+    s.counters[COUNTER_KEPT], s.counters[COUNTER_KEPT_DROPPED] = 1, dropped
+    if dropped:
+        s.counters[COUNTER_RANK] += 1
+
+
+@inlined
+def _may_keep(act, s):
+    """Whether the factor in Lx may be tried for this evaluation (there is one, trying it can cost less than a
+    fresh one, and no failure is being waited out)."""
+    if s.counters[COUNTER_KEPT] == 0 or act.refine[0] < 0:
+        return False
+    if s.counters[COUNTER_WAIT] > 0:
+        s.counters[COUNTER_WAIT] -= 1
+        return False
+    return True
+
+
+@inlined
+def _solve(m, act, s, kept):
+    """s.lam <- A^-1 s.rhs: by the kept factor while it serves (its failure: factored afresh, and the wait before
+    the next try doubled); returns whether the factor in Lx is still the kept one (not refactored)."""
+    cons = m.constraints
+    if kept:
+        if solve_again(act, cons, s.J, s.MJ, cons.soft, s.Lx, s.dropped, s.rhs, s.lam, s.target, s.correction,
+                       s.delta):
+            s.counters[COUNTER_BACKOFF] = 0
+            s.counters[COUNTER_REUSED] += 1
+            return True
+        wait = min(KEPT_WAIT_MOST, max(KEPT_WAIT_FIRST, 2 * s.counters[COUNTER_BACKOFF]))
+        s.counters[COUNTER_BACKOFF], s.counters[COUNTER_WAIT] = wait, wait
+        _factor_afresh(m, act, s)
+        for i in range(len(act.rows)):
+            s.rhs[i] = s.target[i]  # (solve_again kept the right-hand side there)
+    substitute(act, s.Lx, s.dropped, s.rhs, s.lam)
+    return False
+
+
 @inlined
 def constrain(m, act, s, y, table, j, acc):
     """acc += M^-1 (J^T lambda + sliding friction), lambda from the multiplier equation (module docstring); with
     sliding contacts the solve is repeated with the friction of the last lambda_n until lambda no longer changes
-    (core/contact.py; the factorization stays)."""
+    (core/contact.py; the factorization stays). The factorization of an earlier evaluation is kept while it
+    serves this one's J M^-1 J^T (core/solve.py solve_again: bodies at rest on each other)."""
     cons = m.constraints
     evaluate_rows(m, act, s, y, table, j)
     inverse_mass_times_J(act, cons, m.bodies, s.inv_inertia, s.J, s.MJ)
-    assemble(act, s.J, s.MJ, s.include, True, cons.soft, s.Lx, s.diag)
-    if factor(act, s.Lx, s.diag, s.work, s.dropped):
-        s.counters[0] += 1
+    kept = _may_keep(act, s)
+    if kept and s.counters[COUNTER_KEPT_DROPPED]:
+        s.counters[COUNTER_RANK] += 1  # (the kept factor dropped dependent rows: so does this solve)
+    if not kept:
+        _factor_afresh(m, act, s)
     for iteration in range(FRICTION_ITERATIONS):
         friction = _add_friction(m, act, s, y, acc)
         _right_hand_side(m, act, s, y, acc)
         for i in range(len(act.rows)):
             s.dlam[i] = s.lam[i]
-        substitute(act, s.Lx, s.dropped, s.rhs, s.lam)
+        kept = _solve(m, act, s, kept)
         if not friction:
             break
         change, size = 0.0, 0.0
@@ -149,4 +201,5 @@ def accelerations(m, act, s, y, table, j, acc):
 def evaluate_accelerations(m, act, s, y, table, acc):
     """acc (n+1,6) <- (a, alpha) at state y and time table row 0 (for tests and for callers that need the
     accelerations of one state, not a run)."""
+    s.counters[COUNTER_KEPT] = 0  # (a factor in Lx may be of another state's rows)
     accelerations(m, act, s, y, table, 0, acc)

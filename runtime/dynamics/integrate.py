@@ -21,7 +21,7 @@ import math
 
 from ..core.bodies import copy_state, normalize_quaternions, place_kinematic
 from ..core.contact import add_impulses
-from ..core.data import COUNTER_TURNED_BACK
+from ..core.data import COUNTER_KEPT, COUNTER_TURNED_BACK
 from ..core.jit import entry, inlined, kernel
 from ..core.record import DONE, after_step, record
 from .accelerations import accelerations
@@ -142,6 +142,7 @@ def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, e
     manifold (a row that switched on with its points together but moving apart is held from this instant). A step
     after which the collision stage must look ends the call before its frame is recorded (status CONTACT)."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
+    s.counters[COUNTER_KEPT] = 0  # (a factor in Lx from an earlier call may be of other rows)
     if entering:
         project(m, act, s, y, table, 0, True)
     f = 0

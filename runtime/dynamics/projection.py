@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 from ..core.bodies import rotations, world_inverse_inertia
+from ..core.data import COUNTER_KEPT, COUNTER_KEPT_DROPPED, COUNTER_RANK
 from ..core.jit import inlined
 from ..core.rows import evaluate_rows, row_motion
 from ..core.solve import apply_impulses, assemble, factor, inverse_mass_times_J, move_along, substitute
@@ -71,8 +72,11 @@ def project(m, act, s, y, table, j, fresh):
         world_inverse_inertia(m.bodies, s.R, s.inv_inertia)
         inverse_mass_times_J(act, cons, m.bodies, s.inv_inertia, s.J, s.MJ)
         assemble(act, s.J, s.MJ, s.include, every, cons.soft, s.Lx, s.diag)
-        if factor(act, s.Lx, s.diag, s.work, s.dropped):
-            s.counters[0] += 1
+        dropped = factor(act, s.Lx, s.diag, s.work, s.dropped)
+        if dropped:
+            s.counters[COUNTER_RANK] += 1
+        # (the factor of the whole J M^-1 J^T when every row took part: the next evaluations may keep it)
+        s.counters[COUNTER_KEPT], s.counters[COUNTER_KEPT_DROPPED] = (1 if every else 0), dropped
     for _ in range(PROJECT_ITERATIONS):
         if worst_c <= PROJECT_POSITION:
             break

@@ -17,6 +17,7 @@ import math
 from collections import namedtuple
 
 from ..core.bodies import rotations, turn, world_inverse_inertia
+from ..core.data import COUNTER_KEPT
 from ..core.jit import kernel
 from ..core.rows import apply_drivers, instance_rows, write_rows
 from ..core.solve import assemble, factor, inverse_mass_times_J, move_along, substitute
@@ -180,6 +181,7 @@ def direct(m, act, curves, s, y, t, hs, iterations, shake):
         s.Lx[act.Lp[i]] += alpha
         s.diag[i] += alpha
         s.lam[i] = 0.0
+    s.counters[COUNTER_KEPT] = 0  # (Lx holds a shifted matrix: not one the dynamics evaluations may keep)
     if factor(act, s.Lx, s.diag, s.work, s.dropped):
         s.counters[0] += 1
     for iteration in range(iterations + BLOCK_ITERATIONS):

@@ -3,6 +3,8 @@ the ones lark's own `propagate_positions=True` gives, on every example scene and
 test_parse_loop.py)."""
 from __future__ import annotations
 
+import subprocess
+import sys
 from importlib import resources
 from pathlib import Path
 
@@ -43,3 +45,23 @@ def test_positions_match_lark(reference, path):
 @pytest.mark.parametrize("text", ["-(1 + 2) * 3 m", "(1, 2, 3) m + keys cubic { 0 s: 1, 1 s: 2 }", "f(a @ (0, 1, 0))"])
 def test_expression_positions_match_lark(reference, text):
     assert spans(parse_loop().parse(text, "expr")) == spans(reference.parse(text, start="expr"))
+
+
+def test_without_hides_a_module_only_while_its_block_runs():
+    # (in a fresh interpreter: colorsys is imported by nothing else)
+    code = """
+import sys
+from isaac_lang.imports import without
+with without("colorsys", why="a test"):
+    try:
+        import colorsys
+    except ImportError as error:
+        assert "hidden while a test is imported" in str(error)
+    else:
+        raise AssertionError("imported inside the block")
+import colorsys
+import lark.lexer
+assert not lark.lexer.has_interegular  # lark was imported by isaac_lang without it, installed or not
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr

@@ -93,6 +93,20 @@ def test_pendulum_run_imports_neither_collide_nor_fcl(tmp_path):
     assert done.returncode == 0, done.stderr
 
 
+def test_resting_contact_loads_no_scipy_linalg_and_an_impact_does(tmp_path):
+    # scipy.linalg (0.1 s to import) serves the Python-side impulse solve only: a box that slides from rest
+    # never needs it, a ball that bounces does at its first impact
+    code = ("import sys; from isaac_lang.cli import main; rc = main(['run', sys.argv[1], '--out', sys.argv[2], "
+            "'--until', sys.argv[3]]); print('scipy.linalg' in sys.modules); sys.exit(rc)")
+    seen = {}
+    for scene, until in (("slide", "1.5"), ("bounce", "1.0")):
+        done = subprocess.run([sys.executable, "-c", code, str(SCENES / f"{scene}.isaac"), str(tmp_path / scene),
+                               until], capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        seen[scene] = done.stdout.strip().splitlines()[-1]
+    assert seen == {"slide": "False", "bounce": "True"}
+
+
 def test_isaac_plan_says_a_scene_whose_pairs_are_all_excluded_has_no_collision_stage():
     # the windmill's two boxes collide, but its blade is joined to its tower: the stage is off, fcl never loaded
     code = ("import sys; from isaac_lang.cli import main; rc = main(['plan', sys.argv[1]]); "
