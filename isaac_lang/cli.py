@@ -165,7 +165,8 @@ class _VersionAction(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, help="show the version and exit")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        parser.exit(message=f"isaac {_version()}\n")
+        print(f"isaac {_version()}")  # (on stdout, as argparse's own version action prints it)
+        parser.exit()
 
 
 def _version() -> str:
