@@ -31,6 +31,7 @@ import math
 
 from .bodies import turn
 from .jit import kernel
+from .rows import row_motion
 from .vec import quat_to_matrix
 
 # a pivot below this fraction of its diagonal marks a row dependent on the ones before it
@@ -190,13 +191,7 @@ def multiply(act, cons, J, MJ, soft, x, delta, out):
     for i in range(len(act.rows)):
         r = act.rows[i]
         k = cons.row_instance[r]
-        total = 0.0
-        for s in range(2):
-            b = cons.body[k, s]
-            if b < 0:
-                continue
-            for c in range(6):
-                total += J[r, s, c] * delta[b, c]
+        total = row_motion(cons, r, delta, delta, J, 0)
         if soft[r] != 0.0:
             own = 0.0  # A_ii: the products of the row's slots on one body
             for s in range(2):
