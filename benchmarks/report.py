@@ -125,7 +125,8 @@ def work_precision_table(wp: list) -> str:
         for metric in case.metrics[:2]:
             cells = [case.name, metric]
             for model, integ, h in (("dynamics", "rk4", 3e-2), ("dynamics", "rk4", 1e-2), ("dynamics", "rk4", 1e-3),
-                                    ("dynamics", "rk4", 1e-4), ("dynamics", "rk4 10Hz", 1e-3), ("dynamics", "midpoint", 1e-3),
+                                    ("dynamics", "rk4", 1e-4), ("dynamics", "rk4 10Hz", 1e-3),
+                                    ("dynamics", "midpoint", 1e-3),
                                     ("dynamics", "euler", 1e-3), ("procedural", "xpbd", 1e-2),
                                     ("procedural", "xpbd", 1e-3)):
                 r = _find(wp, case=case.name, engine="isaac", model=model, integrator=integ, step=h)

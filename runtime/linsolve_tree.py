@@ -8,7 +8,8 @@ from collections import deque
 
 import numpy as np
 
-from .linsolve import RANK_RTOL, lapack, RESIDUAL_RTOL, SolveInfo, SparsePattern, _dynamic_slots, _relative_residual, apply_inverse_mass, solve_sparse
+from .linsolve import (RANK_RTOL, RESIDUAL_RTOL, SolveInfo, SparsePattern, _dynamic_slots, _relative_residual,
+                       apply_inverse_mass, lapack, solve_sparse)
 
 
 class TreeSolver:

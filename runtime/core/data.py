@@ -17,7 +17,8 @@ PACKED = 13
 STAGES = 4  # slopes kept by the integrators (RK4's four)
 
 Scratch = namedtuple("Scratch", "R inv_inertia force torque acc param C J ct bias MJ Jd rhs lam dlam diag work dropped "
-                                "include Lx target correction delta k y0 ys start R0 friction impulse air block counters")
+                                "include Lx target correction delta k y0 ys start R0 friction impulse air block "
+                                "counters")
 # the buffers of one small block (an instance's rows, at most 3) of the procedural projection
 Block = namedtuple("Block", "K rhs x J D dx")
 # counters: [0] evaluations whose solve dropped a dependent row, [1] projections done, [2] 1 + the first sliding

@@ -23,6 +23,7 @@ ENERGY, CONSTRAINT_ERROR, ROWS, CONTACTS = 0, 1, 2, 3
 _NO_ROWS = empty_active()
 _NO_INSTANCES = np.zeros(0, np.int64)
 _NO_CONTACTS = np.zeros((1, 1, 8))
+_NO_TABLE = np.zeros((1, 1))  # (energy and contacts read no time function)
 
 
 @entry
@@ -48,7 +49,7 @@ def measure(m, act, instances, s, y, table, what, out):
 
 def state_energy(m, s, y) -> float:
     """Kinetic plus potential energy of the dynamic bodies at state y."""
-    return measure(m, _NO_ROWS, _NO_INSTANCES, s, y, np.zeros((1, 1)), ENERGY, _NO_CONTACTS)[0]
+    return measure(m, _NO_ROWS, _NO_INSTANCES, s, y, _NO_TABLE, ENERGY, _NO_CONTACTS)[0]
 
 
 def state_constraint_error(m, act, s, y, table) -> tuple:
@@ -63,4 +64,4 @@ def row_errors(m, instances, s, y, table) -> None:
 
 def frame_contacts(m, act, s, y, out) -> None:
     """out (1, K, 8) <- the active contacts at state y, their impulse accumulators back to 0."""
-    measure(m, act, _NO_INSTANCES, s, y, np.zeros((1, 1)), CONTACTS, out)
+    measure(m, act, _NO_INSTANCES, s, y, _NO_TABLE, CONTACTS, out)

@@ -22,8 +22,9 @@ A factorization is kept for the evaluations after it (`solve_again`): where J M^
 
 converging by the factor |I - A_0^-1 A| per step; it is used when |r| falls below REFINE_RTOL |b| within the
 corrections that cost less than factoring afresh (structure.py affordable_corrections, at most REFINE_STEPS; a
-small system, a pendulum's, never keeps one), else the caller factors afresh. A matrix-free product and a substitution cost a
-fraction of an assembly and a factorization (a tower of ten boxes, 120 rows: 2 and 4 us against 35 us).
+small system, a pendulum's, never keeps one), else the caller factors afresh. A matrix-free product and a
+substitution cost a fraction of an assembly and a factorization (a tower of ten boxes, 120 rows: 2 and 4 us
+against 35 us).
 """
 from __future__ import annotations
 

@@ -536,6 +536,23 @@ var IsaacDraw = (function () {
     return add(v.eye, scale(dot(sub(point, v.eye), v.forward) / k, dir));
   };
 
+  // ---- the orbit both pages turn the camera by: the wheel zooms, a double click goes back home ----------------
+
+  function newOrbit() { return { azimuth: 0, elevation: 0, zoom: 1 }; }
+  function resetOrbit(orbit) { Object.assign(orbit, newOrbit()); }
+
+  // changed() is called after every change of the orbit or of the window's size (the page redraws)
+  function zoomControls(canvas, orbit, changed) {
+    canvas.addEventListener("wheel", (e) => {
+      orbit.zoom *= Math.exp(e.deltaY * 0.001);
+      changed();
+      e.preventDefault();
+    }, { passive: false });
+    canvas.addEventListener("dblclick", () => { resetOrbit(orbit); changed(); });
+    window.addEventListener("resize", changed);
+  }
+
   return { decode: decode, loadModel: loadModel, frameAt: frameAt, trajectoryPoses: trajectoryPoses,
-           framePoses: framePoses, apply: apply, Renderer: Renderer, BACKGROUND: BACKGROUND };
+           framePoses: framePoses, apply: apply, Renderer: Renderer, BACKGROUND: BACKGROUND, newOrbit: newOrbit,
+           resetOrbit: resetOrbit, zoomControls: zoomControls };
 })();

@@ -17,7 +17,7 @@
   const ds = document.body.dataset;
 
   let data = null, model = null, poses = null, t = 0, version = 0;
-  let orbit = { azimuth: 0, elevation: 0, zoom: 1 };
+  const orbit = D.newOrbit();
   let dirty = true, frames = 0, ended = false;
   let drag = null; // {body, name, local, plane: world point the drag plane passes through, target}
 
@@ -182,13 +182,7 @@
     };
     canvas.addEventListener("pointerup", up);
     canvas.addEventListener("pointercancel", up);
-    canvas.addEventListener("wheel", (e) => {
-      orbit.zoom *= Math.exp(e.deltaY * 0.001);
-      dirty = true;
-      e.preventDefault();
-    }, { passive: false });
-    canvas.addEventListener("dblclick", () => { orbit = { azimuth: 0, elevation: 0, zoom: 1 }; dirty = true; });
-    window.addEventListener("resize", () => { dirty = true; });
+    D.zoomControls(canvas, orbit, () => { dirty = true; });
   }
 
   // ---- the parameters: a slider each, sent when let go ------------------------------------------------------------

@@ -14,10 +14,10 @@
   let speed = 1;
   let lastNow = null;
   let dirty = true;
-  let orbit = { azimuth: 0, elevation: 0, zoom: 1 };
 
   const D = IsaacDraw;
   const renderer = new D.Renderer(canvas);
+  const orbit = D.newOrbit();
 
   // ---- data -------------------------------------------------------------------------------------------------
 
@@ -112,7 +112,7 @@
       speed = parseFloat($("speed").value);
       if (audio.src) audio.playbackRate = speed;
     });
-    $("camera").addEventListener("change", () => { orbit = { azimuth: 0, elevation: 0, zoom: 1 }; dirty = true; });
+    $("camera").addEventListener("change", () => { D.resetOrbit(orbit); dirty = true; });
     document.addEventListener("keydown", (e) => {
       if (e.target.tagName === "SELECT") return;
       const step = model.time.length > 1 ? model.time[1] - model.time[0] : 0.01;
@@ -131,13 +131,7 @@
       drag = [e.clientX, e.clientY];
       dirty = true;
     });
-    canvas.addEventListener("wheel", (e) => {
-      orbit.zoom *= Math.exp(e.deltaY * 0.001);
-      dirty = true;
-      e.preventDefault();
-    }, { passive: false });
-    canvas.addEventListener("dblclick", () => { orbit = { azimuth: 0, elevation: 0, zoom: 1 }; dirty = true; });
-    window.addEventListener("resize", () => { dirty = true; });
+    D.zoomControls(canvas, orbit, () => { dirty = true; });
   }
 
   function install(data) {
