@@ -229,15 +229,16 @@ class Collider:
             s.t = t_end
             scan = self.scan(always=True)
         self.resolve(scan, t_end, rewound=False, epoch=epoch)
-        self._keep_contacts()
+        self._keep_contacts(scan)  # (resolve changes velocities only: the scan of these positions stands)
 
-    def _keep_contacts(self) -> None:
-        """The lasting contacts from the touching points at the live state; then, for each pair in contact, the
-        turn after which it is looked at again: before the gap of its nearest other feature can close (a
-        rocking box's lifted edge: a turn of a brings a point at most reach * a nearer)."""
+    def _keep_contacts(self, scan=None) -> None:
+        """The lasting contacts from the touching points at the live state (`scan`: a full scan of these
+        positions, made since they last changed); then, for each pair in contact, the turn after which it is
+        looked at again: before the gap of its nearest other feature can close (a rocking box's lifted edge: a turn
+        of a brings a point at most reach * a nearer)."""
         s = self.sim.state
-        self.lasting.update(self._touching(self.scan(always=True)), s.x, s.q, s.v, s.w, self.resting_speed,
-                            self.plan.step)
+        scan = self.scan(always=True) if scan is None else scan
+        self.lasting.update(self._touching(scan), s.x, s.q, s.v, s.w, self.resting_speed, self.plan.step)
         pairs = self.sim.compiled.model.pairs
         touching = np.flatnonzero(pairs.state == 1)
         if not len(touching):
