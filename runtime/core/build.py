@@ -166,11 +166,15 @@ class CompiledPlan:
 
     def _held(self, rows, y, t) -> np.ndarray:
         cons = self.model.constraints
-        C, rate = self._errors_at(rows, y, t)
-        omega = np.sqrt(np.maximum(cons.ks[rows], 1.0))
-        on_manifold = (np.abs(C) <= ASSEMBLE_ABOVE) & (np.abs(rate) <= ASSEMBLE_ABOVE * omega)
         fresh = ~self.row_seen[rows]
-        return np.where(fresh, on_manifold | cons.velocity_only[rows], self.row_held[rows]) & cons.settles[rows]
+        held = self.row_held[rows].copy()
+        if fresh.any():  # (only a row not seen before is evaluated: a contact set that changes keeps its joints')
+            new = rows[fresh]
+            C, rate = self._errors_at(new, y, t)
+            omega = np.sqrt(np.maximum(cons.ks[new], 1.0))
+            on_manifold = (np.abs(C) <= ASSEMBLE_ABOVE) & (np.abs(rate) <= ASSEMBLE_ABOVE * omega)
+            held[fresh] = on_manifold | cons.velocity_only[new]
+        return held & cons.settles[rows]
 
     def leave(self, act) -> None:
         """Remember which joint rows of an epoch being left were held (for the epochs after it)."""
