@@ -311,8 +311,9 @@ def cmd_plan(args, sources) -> int:
 
 
 def cmd_run(args, sources) -> int:
-    from isaac_runtime.run import RunOptions, run_scene
+    from isaac_runtime.run import RunOptions, load_core_in_background, run_scene
 
+    load_core_in_background()  # (while the scene is parsed and planned)
     loaded = _load(args, sources)
     _check_until(args, loaded.scene)
     if args.mic is not None:  # a SignalError (no sounddevice, no device) is a SceneError: exit 2, with a hint

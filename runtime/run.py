@@ -57,6 +57,16 @@ class RunResult:
     audio: object = None  # runtime.audio.AudioRun: the motion recorded for the sounds (scenes with sounds)
 
 
+def load_core_in_background() -> None:
+    """The dynamics plan's compiled step and measurements, loaded from numba's cache while the caller parses the
+    scene (core/jit.py load_in_background)."""
+    from .core.entries import measure
+    from .core.jit import load_in_background
+    from .dynamics.integrate import run
+
+    load_in_background(run, measure)
+
+
 def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     """Plan the scene and run it to the end, recording every frame (the in-process form of `isaac run`)."""
     options = options or RunOptions()

@@ -115,3 +115,28 @@ scene api {
     assert np.allclose(sim.state.x[bob], x_before)
     with pytest.raises(ValueError):
         sim.set_pose("bob", (0, 0, 0))
+
+
+def test_the_compiled_step_loads_in_the_background_from_the_cache_only():
+    # a warm cache (this process has run the step): a fresh process loads those overloads in a thread, and its
+    # first call finds them there; a dispatcher that nothing cached starts no thread
+    Simulation.from_file(SCENES / "pendulum.isaac", until=0.01).advance_to(0.01)
+    code = """
+import threading
+import numba
+from isaac_runtime.core.jit import OPTIONS, _cached_signatures, load_in_background
+from isaac_runtime.dynamics.integrate import run
+cached = _cached_signatures(run)
+assert cached, "the step is cached"
+load_in_background(run)
+for thread in threading.enumerate():
+    if thread.name == "isaac-load-core":
+        thread.join()
+assert set(map(tuple, run.signatures)) == set(map(tuple, cached))
+fresh = numba.njit(**OPTIONS)(lambda x: x + 1)  # (not cached: nothing to load)
+before = threading.active_count()
+load_in_background(fresh)
+assert threading.active_count() == before and not fresh.signatures
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
