@@ -22,8 +22,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..linsolve import lapack
-
 # PGS stops when no row changes the velocities by more than this fraction of the largest velocity change asked
 # for, max |target - u0| (a sliding block's friction is then right to 1e-8 of itself)
 PGS_TOLERANCE = 1e-8
@@ -36,16 +34,21 @@ ACTIVE_SET_PASSES = 6
 # diagonal shift of the direct solve, relative to the largest diagonal entry of W
 REGULARIZATION = 1e-10
 
+
+# numpy's own LAPACK (imported with numpy) serves these small systems: scipy.linalg would cost 0.1 s to import at
+# a run's first impact, more than every impulse solve of a short scene together
 def cholesky(A):
-    """The lower Cholesky factor of A (m,m), or None when A is not positive definite: LAPACK potrf directly,
-    what scipy's cho_factor calls, without its per-call checks and wrappers (the same numbers)."""
-    factor, info = lapack().dpotrf(A, lower=1, clean=0)
-    return factor if info == 0 else None
+    """The lower Cholesky factor L of A (m,m), A = L L^T, or None when A is not positive definite."""
+    try:
+        return np.linalg.cholesky(A)
+    except np.linalg.LinAlgError:
+        return None
 
 
 def cholesky_solve(factor, b):
-    """A^-1 b (m,) or (m,k) from the factor of `cholesky`: LAPACK potrs (scipy's cho_solve)."""
-    return lapack().dpotrs(factor, b, lower=1)[0]
+    """A^-1 b (m,) or (m,k) from the factor L of `cholesky`: L z = b, then L^T x = z (m is a few contacts' rows:
+    a general solve of the triangular factors costs what a triangular one would)."""
+    return np.linalg.solve(factor.T, np.linalg.solve(factor, b))
 
 
 def solve(W, u0, target, mu, tangent) -> np.ndarray:
@@ -128,9 +131,7 @@ def _polish(W, u0, target, mu, tangent, lam, tol):
     B = np.array(columns).T
     rows = np.array(rows)
     try:
-        import scipy.linalg  # (on first use, as linsolve.lapack)
-
-        z = scipy.linalg.lstsq(W[rows] @ B, target[rows] - u0[rows], lapack_driver="gelsy", check_finite=False)[0]
+        z = np.linalg.lstsq(W[rows] @ B, target[rows] - u0[rows], rcond=None)[0]
     except (np.linalg.LinAlgError, ValueError):
         return None
     polished = B @ z
