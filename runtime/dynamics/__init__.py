@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.jit import Bound
 from .integrate import GRID, INTEGRATORS, run
 
 
@@ -22,14 +23,15 @@ class DynamicsStepper:
         self.compiled = compiled
         self.integrator = INTEGRATORS[plan.integrator]
         self.entering = None  # the Active rows of an epoch just entered, until its first run
+        self._run = Bound(run)
 
     def run(self, act, y, t0: float, h: float, steps: int, frame_step, frames, status) -> int:
         """`steps` steps of h from t0 (integrate.run); returns the steps taken."""
         c = self.compiled
         table = c.tabulate(t0, h, steps, GRID)
         entering, self.entering = self.entering is act, None
-        return run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status,
-                   entering)
+        return self._run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status,
+                         entering)
 
     def enter(self, act, y, t: float) -> None:
         """A new epoch begins at t: its first run starts by putting the held rows on their manifold."""

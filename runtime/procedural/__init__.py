@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.entries import measure, row_errors
+from ..core.jit import Bound
 from ..core.model import GEAR, ROPE
 from .loop import run
 from .project import Curves, Sweep
@@ -33,6 +34,7 @@ class ProceduralStepper:
         self.iterations = int(options.iterations)
         self.projection = getattr(options, "projection", "auto")
         self._epochs: dict = {}  # id(Active) -> (Active, Sweep, Curves)
+        self._run = Bound(run)
 
     def run(self, act, y, t0: float, h: float, steps: int, frame_step, frames, status) -> int:
         c = self.compiled
@@ -40,8 +42,8 @@ class ProceduralStepper:
         _, sw, curves = self._epoch(act)
         all_at_once = self.projection == "direct" or (self.projection == "auto" and (
             len(act.rows) <= DIRECT_MAX_ROWS or bool(len(act.rows)) and act.rows.max() >= c.joint_rows))
-        return run(c.model, act, sw, curves, c.scratch, y, table, h, steps, self.grid, self.iterations, all_at_once,
-                   frame_step, frames, status)
+        return self._run(c.model, act, sw, curves, c.scratch, y, table, h, steps, self.grid, self.iterations,
+                         all_at_once, frame_step, frames, status)
 
     def enter(self, act, y, t: float) -> None:
         """A new epoch at t: the sweep order of its instances, and the curves of its rows still assembling

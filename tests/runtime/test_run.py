@@ -140,3 +140,15 @@ assert threading.active_count() == before and not fresh.signatures
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+def test_a_bound_entry_calls_the_compiled_overload_after_its_first_call():
+    # the step loop's later calls skip numba's typing of every argument; the motion is the dispatcher's own
+    bound = Simulation.from_file(SCENES / "cradle.isaac", until=0.5)
+    bound.advance_to(0.5)
+    assert bound.stepper._run.call is not None
+    typed = Simulation.from_file(SCENES / "cradle.isaac", until=0.5)
+    typed.stepper._run = typed.stepper._run.dispatcher  # (every call typed by numba)
+    typed.advance_to(0.5)
+    assert np.array_equal(bound.state.x, typed.state.x) and np.array_equal(bound.state.v, typed.state.v)
+    assert [e["time"] for e in bound.events] == [e["time"] for e in typed.events]
