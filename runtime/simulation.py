@@ -7,7 +7,8 @@
 The steps themselves run in compiled kernels (runtime/core, runtime/dynamics, runtime/procedural), many per call;
 Python runs only between calls: at constraint switches (a step never crosses one: time is cut into pieces at
 switches and frames, and each piece takes equal steps no longer than the plan's), at recorded frames when a
-caller needs them one by one, and after each step while a stage still lives in Python (collisions, observers).
+caller needs them one by one, at every frame while a tracer reads the motion (the audio stage: the kernel hands it
+the motion of every step), at the collision stage's looks, and after each step while an observer listens.
 """
 from __future__ import annotations
 
@@ -98,8 +99,12 @@ class Simulation:
         # collisions (runtime.collide): contact rows in the step, impacts and changes of contact when it stops;
         # built only when the plan has them
         self.collider = plan.collisions.start(self) if plan.collisions is not None else None
-        # observers called after every step, e.g. the audio stage recording motion signals
+        # observers called after every step (the kernel then takes one step per call: a probe, a test's oracle)
         self.observers: list = []
+        # tracers (add_tracer): the audio stage's recorder, handed the motion of its bodies at every step after each
+        # kernel call, which ends at every frame while one listens
+        self.tracers: list = []
+        self._traced = np.zeros(0, np.int64)  # their bodies, one after another (Frames.traced)
         self._follow_paths()
         self._place_kinematic()
         if self.collider is not None:
@@ -228,6 +233,14 @@ class Simulation:
 
     # -- stepping -----------------------------------------------------------------------------------------
 
+    def add_tracer(self, tracer) -> None:
+        """A stage that reads the position and velocity of tracer.bodies ((b,) int) at every step:
+        tracer.take(simulation, times (k,), trace (k, b, 6) x and v) is called after each kernel call with its
+        steps (their end times), after the collision stage and the frames of those steps. A call then ends at
+        every frame, so that the live state is the frame's when the frame's contact events are read."""
+        self.tracers.append(tracer)
+        self._traced = np.concatenate([np.asarray(t.bodies, np.int64) for t in self.tracers])
+
     def advance_to(self, t_target: float) -> None:
         """Step until time t_target, landing exactly on every constraint switch on the way."""
         self._advance(t_target, None)
@@ -296,12 +309,13 @@ class Simulation:
             per_call = min(per_call, ON_FRAME_STEPS)  # the caller hears of the frames (and can stop) every so often
         if self.observers:
             per_call = 1  # stages still in Python need the state after every step
+        by_frame = bool(self.tracers)  # (add_tracer) a call to each frame
         while i < len(cuts):
             span = cuts[i][0] - s.t
             count = max(1, math.ceil(span / h - 1e-9))
             h_piece = span / count
             intervals = 1
-            while (i + intervals < len(cuts) and count * intervals < per_call
+            while (i + intervals < len(cuts) and not by_frame and count * intervals < per_call
                    and abs((cuts[i + intervals][0] - cuts[i + intervals - 1][0]) / count - h_piece)
                    <= 1e-12 * h_piece):
                 intervals += 1
@@ -327,9 +341,10 @@ class Simulation:
             steps = min(per_call, total - done)
             frame_step = np.array(sorted(end - done for end in frame_ends if (done < end or end == 0)
                                          and end <= done + steps and not in_python), np.int64)
-            frames = self._frame_buffer(len(frame_step))
+            frames = self._frame_buffer(len(frame_step), steps)
             taken = self.stepper.run(self._act, s.y, t0 + done * h, h, steps, frame_step, frames, self._status)
             self._compile_notice.end()
+            first = done
             done += taken
             s.steps += taken
             s.t = t0 + done * h
@@ -345,6 +360,21 @@ class Simulation:
                 self._after_step(h)
             if (in_python or stopped) and done in frame_ends and sink is not None:
                 self._record_now(sink)
+            if self.tracers:
+                self._hand_trace(frames.trace[:taken], t0 + np.arange(first + 1, done + 1) * h, stopped)
+
+    def _hand_trace(self, trace: np.ndarray, times: np.ndarray, stopped: bool) -> None:
+        """The steps of a kernel call to each tracer (add_tracer); the last one as the collision stage left it
+        when it looked at that step (it may have taken the step again)."""
+        if stopped:
+            s = self.state
+            times[-1] = s.t
+            trace[-1, :, :3], trace[-1, :, 3:] = s.x[self._traced], s.v[self._traced]
+        first = 0
+        for tracer in self.tracers:
+            count = len(tracer.bodies)
+            tracer.take(self, times, trace[:, first:first + count])
+            first += count
 
     def _python_stages(self) -> bool:
         """Whether a stage still runs in Python after every step (observers)."""
@@ -360,11 +390,13 @@ class Simulation:
 
     # -- frames ---------------------------------------------------------------------------------------------
 
-    def _frame_buffer(self, count: int) -> Frames:
+    def _frame_buffer(self, count: int, steps: int = 0) -> Frames:
+        """Room for `count` frames, and for the traced motion of `steps` steps when a tracer listens."""
         n1 = self.plan.n + 1
         K = len(self.compiled.model.constraints.family)
+        traced = self._traced
         return Frames(np.zeros((count, n1, D.PACKED)), np.zeros(count), np.zeros(count), np.zeros(count, np.int64),
-                      np.zeros((count, K, 8)))
+                      np.zeros((count, K, 8)), traced, np.zeros((steps if self.tracers else 0, len(traced), 6)))
 
     def _deliver(self, frames: Frames, frame_step, recorded: int, sink) -> None:
         """Hand on the frames the kernel recorded: those after steps 0..recorded."""

@@ -1,6 +1,6 @@
-"""Audio stage, recording the motion: an observer of the step loop that keeps what the sounds read.
+"""Audio stage, recording the motion: a tracer of the step loop that keeps what the sounds read.
 
-After every step (Simulation.observers) it stores, at the step's end time:
+For every step (handed on after each kernel call: Simulation.add_tracer) it stores, at the step's end time:
 - hits: every new collision event of kind "impact", with its sample round((t - start) fs), the contact point
   in each body's frame (for the mode shapes) and the contact duration (excitation.py);
 - for each body pair a sound listens to (contact sounds, scrape, roll), at the time of each of the pair's
@@ -62,10 +62,11 @@ class StepTable:
         self.positions = _grown(self.positions, 1, steps, self.size)
         self.wind = _grown(self.wind, 1, steps, self.size)
 
-    def next_step(self) -> int:
-        """The index of the step to write next (the table grows when full); `size` counts it once written."""
-        if self.size == len(self.times):
-            self.reserve(2 * self.size)
+    def room_for(self, count: int) -> int:
+        """The index of the first of `count` steps to write next (the table at least doubles when they do not
+        fit); `size` counts them once written."""
+        if self.size + count > len(self.times):
+            self.reserve(max(2 * len(self.times), self.size + count))
         return self.size
 
 
@@ -139,7 +140,8 @@ class MotionRecord:
 
 
 class Recorder:
-    """The observer: started by AudioPlan.record(sim), fills a MotionRecord as the simulation steps."""
+    """The tracer (Simulation.add_tracer): started by AudioPlan.record(sim), fills a MotionRecord as the
+    simulation steps, from the motion of its bodies at every step that each kernel call hands it."""
 
     def __init__(self, plan, sim):
         self.plan = plan
@@ -157,38 +159,56 @@ class Recorder:
             if self.record.wind else None
         self.frames = np.asarray(sim.plan.frame_times, float)
         self.next_frame = int(np.searchsorted(self.frames, sim.state.t, side="right"))
+        # the bodies whose motion the steps must hand on: the placed ones, then those the wind is sampled at
+        moving = self.wind_probes.moving_body if self.wind_probes is not None else np.zeros(0, np.int64)
+        self.bodies = np.concatenate([self.placed_rows, moving]).astype(np.int64)
+        self._step_state = _StepState(sim.state.x.copy(), sim.state.v.copy())  # wind speeds' state of one step
         self.seen = 0
-        self._sample(sim, [], 0)
-        sim.observers.append(self.observe)
+        self._sample_start(sim)
+        sim.add_tracer(self)
 
-    def observe(self, sim, h: float) -> None:
+    def take(self, sim, times: np.ndarray, trace: np.ndarray) -> None:
+        """The steps of one kernel call (Simulation.add_tracer): their end times (k,) and trace (k, b, 6), the
+        position and velocity of self.bodies after each; then the events they brought, read at the live state
+        (the call's end: an impact ends a call, and a call ends at every frame)."""
         first = self.seen
         new = sim.events[first:] if len(sim.events) > first else NO_EVENTS
         self.seen = first + len(new)
-        self._sample(sim, new, first)
+        self._sample_steps(times, trace)
+        self._events(sim.state, new, first)
 
-    def _sample(self, sim, new_events: list, first: int) -> None:
-        state, record, plan = sim.state, self.record, self.plan
-        t = state.t
+    def _sample_start(self, sim) -> None:
+        """The table's first row: the state the run starts from."""
+        s = sim.state
+        trace = np.concatenate([s.x[self.bodies], s.v[self.bodies]], axis=1)[None]
+        self._sample_steps(np.array([s.t]), trace)
+
+    def _events(self, state, new_events: list, first: int) -> None:
+        record, plan = self.record, self.plan
         for k, event in enumerate(new_events):
             if event.get("kind", "impact") != "contact":
                 local = self.local_points(state, event.get("point", (0.0, 0.0, 0.0)), event.get("bodies", ()))
                 record.hits.append(make_hit(plan, event, local, first + k))
-        self._sample_step(state, t)
         if record.contacts:
             self._contacts(new_events, state)
 
-    def _sample_step(self, state, t: float) -> None:
-        """This step's samples in the table: time, placed bodies' positions, wind speeds (a body not in the run
+    def _sample_steps(self, times: np.ndarray, trace: np.ndarray) -> None:
+        """The table's rows of these steps: time, placed bodies' positions, wind speeds (a body not in the run
         keeps position 0 and wind 0)."""
         table = self.record.steps
-        k = table.next_step()
-        table.times[k] = t
-        if len(self.placed_rows):
-            table.positions[self.placed_columns, k] = state.x[self.placed_rows]
+        count = len(times)
+        k = table.room_for(count)
+        table.times[k:k + count] = times
+        placed = len(self.placed_rows)
+        if placed:
+            # (steps, placed, 3) -> the table's (placed, steps, 3)
+            table.positions[self.placed_columns, k:k + count] = trace[:, :placed, :3].transpose(1, 0, 2)
         if self.wind_probes is not None:
-            self.air.speeds(self.wind_probes, state, t, out=table.wind[:, k])
-        table.size = k + 1
+            step, moving = self._step_state, self.wind_probes.moving_body
+            for i in range(count):
+                step.x[moving], step.v[moving] = trace[i, placed:, :3], trace[i, placed:, 3:]
+                self.air.speeds(self.wind_probes, step, float(times[i]), out=table.wind[:, k + i])
+        table.size = k + count
 
     def local_points(self, state, point, bodies) -> dict:
         """A world point in the frame of each of the bodies, from the state at the end of the step."""
@@ -247,6 +267,14 @@ class Recorder:
 
 
 NO_EVENTS: list = []  # the new events of a step without any (never appended to)
+
+
+@dataclass
+class _StepState:
+    """The state as WindField.speeds reads it, of one traced step: x, v (n, 3), the traced rows filled."""
+
+    x: np.ndarray
+    v: np.ndarray
 
 
 def _of_pair(event: dict, pair: tuple) -> bool:

@@ -18,8 +18,10 @@ DONE, RUNAWAY_BODY, RUNAWAY_ROW, CONTACT = 0, 1, 2, 3
 
 # y (F, n+1, 13) the states, energy (F,), error (F,) the largest |C| of the active position rows, worst (F,) its row;
 # contact (F, K, 8): for every contact instance k active at the frame, its normal impulse since the last frame,
-# its slip speed, the contact point (3) and normal (3) (core/contact.py `contact_state`); 0 elsewhere
-Frames = namedtuple("Frames", "y energy error worst contact")
+# its slip speed, the contact point (3) and normal (3) (core/contact.py `contact_state`); 0 elsewhere;
+# traced (k,) the bodies whose position and velocity every step of the call leaves in trace (S, k, 6) as x, v: what a
+# stage reading the motion step by step needs (Simulation.tracers, the audio stage); k = 0 or S = 0 traces nothing
+Frames = namedtuple("Frames", "y energy error worst contact traced trace")
 
 
 @inlined
@@ -51,11 +53,24 @@ def record(m, act, s, y, table, j, frames, f):
 
 
 @inlined
+def trace_step(y, frames, step):
+    """frames.trace[step] <- (x, v) of each traced body after step `step` (counted from 0) of the call."""
+    if step >= frames.trace.shape[0]:
+        return
+    for i in range(len(frames.traced)):
+        b = frames.traced[i]
+        for c in range(3):
+            frames.trace[step, i, c] = y[b, c]
+            frames.trace[step, i, 3 + c] = y[b, 7 + c]
+
+
+@inlined
 def after_step(m, act, s, y, table, j, step, frame_step, frames, f, status):
-    """After step `step` (counted from 0) of a call, ending at grid row j: a body that ran away, a change of
-    contact the collision stage must see (before its frame is recorded), then the frames due now, each checked
-    for a constraint error that ran away. Returns (the steps taken when the call must end there, else -1; the next
+    """After step `step` (counted from 0) of a call, ending at grid row j: the traced bodies' motion, a body that
+    ran away, a change of contact the collision stage must see (before its frame is recorded), then the frames due
+    now, each checked for a constraint error that ran away. Returns (the steps taken when the call must end there, else -1; the next
     frame); status (4,) <- (code, step, body or row or contact, detail) when it ends."""
+    trace_step(y, frames, step)
     body = runaway_body(m.bodies, y)
     if body >= 0:
         status[0], status[1], status[2] = RUNAWAY_BODY, step + 1, body

@@ -44,7 +44,7 @@ class LiveAudio:
             self.stopped = "a parameter changed the scene's bodies: the sound stopped there"
             return
         recorder.seen = 0
-        simulation.observers.append(recorder.observe)
+        simulation.add_tracer(recorder)
 
     def pump(self) -> list:
         """[(first sample, (channels, n) block)] of every block the motion now allows."""

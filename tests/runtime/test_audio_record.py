@@ -3,6 +3,8 @@ speeds in one preallocated table (StepTable), whose columns are the record's ser
 the same table."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -46,6 +48,49 @@ def test_the_record_holds_every_step_as_the_simulation_went():
         assert record.wind[("listener", "gale")].view()[k] == pytest.approx(listener, rel=1e-14, abs=1e-14)
 
 
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
+LANDING = BREEZE.replace("time 0 s .. 0.3 s", "time 0 s .. 1 s\n  frames 100 Hz\n  body floor plane { }")
+
+
+def _recorded(make, one_step_per_call: bool):
+    """(record, kernel calls) of a whole run of frames of make(), the kernel taking many steps per call (the
+    recorder is handed each call's steps) or, with an observer listening, one."""
+    from isaac_runtime.outputs import Recorder as FrameRecorder
+
+    sim = make()
+    run = sim.plan.audio.record(sim)
+    if one_step_per_call:
+        sim.observers.append(lambda s, h: None)
+    calls, stepper_run = [], sim.stepper.run
+    sim.stepper.run = lambda *args: calls.append(args[4]) or stepper_run(*args)
+    sim.run_frames(sim.plan.frame_times, FrameRecorder(sim.plan.frame_times, sim.plan.names))
+    return run.record, len(calls)
+
+
+@pytest.mark.parametrize("make", [lambda: Simulation.from_text(LANDING),
+                                  lambda: Simulation.from_file(SCENES / "scrape.isaac", until=0.6)],
+                         ids=["landing", "scrape"])
+def test_a_call_of_many_steps_records_what_calls_of_one_step_do(make):
+    """The kernel hands the recorder the motion of every step of a call (Simulation.add_tracer), one call to
+    each frame: the same table, hits and contact samples as stepping one step per call, in a fraction of the
+    calls (1 ms steps, 100 Hz frames)."""
+    many, calls = _recorded(make, False)
+    one, one_calls = _recorded(make, True)
+    assert len(many.hits) == len(one.hits)
+    for a, b in zip(many.hits, one.hits):
+        assert (a.sample, a.bodies) == (b.sample, b.bodies) and a.impulse == pytest.approx(b.impulse, rel=1e-9)
+    assert np.array_equal(many.times.view(), one.times.view())
+    for key in many.positions:
+        assert np.allclose(many.positions[key].view(), one.positions[key].view(), rtol=0, atol=1e-12)
+    for key in many.wind:
+        assert np.allclose(many.wind[key].view(), one.wind[key].view(), rtol=1e-12, atol=1e-12)
+    assert many.contacts.keys() == one.contacts.keys()
+    for pair, series in many.contacts.items():
+        for name, column in series.items():
+            assert np.allclose(column.view(), one.contacts[pair][name].view(), rtol=1e-9, atol=1e-12), (pair, name)
+    assert one_calls >= len(one.times.view()) - 1 and calls <= one_calls / 5
+
+
 def test_the_table_is_sized_for_the_run_and_grows_past_it():
     """Preallocated for the run's steps: no copy while it runs. A run longer than that (a live run driven past
     its end) still keeps every step, the earlier ones untouched."""
@@ -55,7 +100,7 @@ def test_the_table_is_sized_for_the_run_and_grows_past_it():
     table = StepTable(positions=1, winds=2, steps=4)
     columns = StepColumn(table, "times"), StepColumn(table, "positions", 0), StepColumn(table, "wind", 1)
     for k in range(11):
-        row = table.next_step()
+        row = table.room_for(1)
         table.times[row], table.positions[0, row], table.wind[:, row] = 0.1 * k, (k, 2 * k, 3 * k), (-k, k)
         table.size = row + 1
     assert len(table.times) == 16 and all(column.size == 11 for column in columns)

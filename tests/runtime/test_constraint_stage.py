@@ -262,7 +262,7 @@ def test_compiled_integrators_match_textbook_ones(name):
     expected = _textbook(name, y, h, lambda f: _kernel_slope(sim, act, scratch, t + f * h))
     got = y.copy()
     frames = Frames(np.zeros((0, sim.plan.n + 1, 13)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64),
-                    np.zeros((0, len(c.model.constraints.family), 8)))
+                    np.zeros((0, len(c.model.constraints.family), 8)), np.zeros(0, np.int64), np.zeros((0, 0, 6)))
     status = np.zeros(4, np.int64)
     I.run(c.model, act, scratch, got, c.tabulate(t, h, 1, I.GRID), I.INTEGRATORS[name], h, 1, np.zeros(0, np.int64),
           frames, status, False)
