@@ -28,7 +28,7 @@ import numpy as np
 from ..core.build import PAIR_TURN
 from ..core.contact import LIFTS, SLIPS, STOPS
 from ..core.data import COUNTER_TURNED_BACK
-from ..rotation import quat_to_matrix, world_inverse_inertia
+from ..rotation import quat_conjugate, quat_multiply, quat_to_matrix, world_inverse_inertia
 from .compound import contact_elements
 from .contacts import ContactSet
 from .events import EventLog
@@ -92,6 +92,10 @@ class Collider:
         self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * self.plan.step)
         self.stats = {"impacts located": 0, "tunnelling caught": 0}
         self.reach = reach(cplan.table)
+        pairs = sim.compiled.model.pairs
+        # the compiled step's pair of bodies (i, j), in either order
+        self.pair_index = {**{(int(a), int(b)): p for p, (a, b) in enumerate(zip(pairs.a, pairs.b))},
+                           **{(int(b), int(a)): p for p, (a, b) in enumerate(zip(pairs.a, pairs.b))}}
 
     # -- the hooks of the step loop -------------------------------------------------------------------------
 
@@ -114,6 +118,7 @@ class Collider:
         self.broad.excluded = keys
         pairs = self.sim.compiled.model.pairs
         now = is_excluded(pair_keys(np.stack([pairs.a, pairs.b], 1), n), keys)
+        pairs.clear[:] = 0.0  # (a clearance holds only while its pair stays apart)
         pairs.state[now] = 2
         pairs.state[~now & (pairs.state == 2)] = 0
         if len(self.lasting.contacts):
@@ -230,6 +235,31 @@ class Collider:
             scan = self.scan(always=True)
         self.resolve(scan, t_end, rewound=False, epoch=epoch)
         self._keep_contacts(scan)  # (resolve changes velocities only: the scan of these positions stands)
+        self._clearances(scan)
+
+    def _clearances(self, scan) -> None:
+        """For each pair apart that the broad phase finds near (scan.pairs), the clearance that lets the compiled
+        step go on without a look (core/contact.py kept_clear): its distance d now and its nearest point z, seen
+        as a point of the body whose turning moves it least (the shorter lever K + d, K = |z - x_B| + B's reach
+        for z a point of A). A pair that touches a plane keeps the plane's own test."""
+        if not len(scan.pairs):
+            return
+        s, pairs, kind = self.sim.state, self.sim.compiled.model.pairs, self.cp.table.kind
+        for i, j in scan.pairs.tolist():
+            p = self.pair_index.get((i, j))
+            if p is None or pairs.state[p] != 0 or PLANE in (kind[i], kind[j]):
+                continue
+            d, z = self.nearest(i, j, s.x, scan.R)
+            if z is None or not d > self.cp.margin:
+                continue
+            a, b = int(pairs.a[p]), int(pairs.b[p])
+            levers = (np.linalg.norm(z - s.x[b]) + self.reach[b] + d, np.linalg.norm(z - s.x[a]) + self.reach[a] + d)
+            side = int(levers[1] < levers[0])
+            A, B = (a, b) if side == 0 else (b, a)
+            pairs.side[p], pairs.lever[p] = side, levers[side]
+            pairs.ref[p], pairs.seen[p] = scan.R[A].T @ (z - s.x[A]), scan.R[B].T @ (z - s.x[B])
+            pairs.relative[p] = quat_multiply(quat_conjugate(s.q[b]), s.q[a])
+            pairs.clear[p] = d - self.cp.margin
 
     def _keep_contacts(self, scan=None) -> None:
         """The lasting contacts from the touching points at the live state (`scan`: a full scan of these
@@ -245,13 +275,29 @@ class Collider:
             return
         R = quat_to_matrix(s.q)
         kind = self.cp.table.kind
+        levers = self._held_levers(s.x, R)
         for p in touching.tolist():
             i, j = int(pairs.a[p]), int(pairs.b[p])
             if {kind[i], kind[j]} <= {SPHERE, PLANE}:
                 continue  # a sphere on a sphere or a plane: nothing new comes from turning (it rolls on its rows)
-            gap = self.distance(i, j, s.x, R, self._known_features(i, j))
-            arm = max(self.reach[i], self.reach[j], 1e-300)
-            pairs.turn[p] = min(PAIR_TURN, max(gap, 0.0) / arm + MIN_TURN, self.cp.margin / arm)
+            gap = max(self.distance(i, j, s.x, R, self._known_features(i, j)), 0.0)
+            # a turn a about a held point z brings a point that was d away at most (K + d) a nearer (K = |z - x_B|
+            # + B's reach: core/contact.py kept_clear), and no point further than the larger reach
+            reach, held = max(self.reach[i], self.reach[j], 1e-300), levers.get(frozenset((i, j)), math.inf)
+            pairs.turn[p] = min(PAIR_TURN, gap / min(reach, held + gap) + MIN_TURN)
+
+    def _held_levers(self, x, R) -> dict:
+        """{pair of bodies: K}, K = |z - x_B| + B's reach for the best of the pair's held points z and of its two
+        bodies as B."""
+        levers = {}
+        for c in self.lasting.contacts.values():
+            if c.a < 0 or c.b < 0:
+                continue
+            z = x[c.a] + R[c.a] @ c.point
+            K = min(np.linalg.norm(z - x[c.a]) + self.reach[c.a], np.linalg.norm(z - x[c.b]) + self.reach[c.b])
+            key = frozenset((c.a, c.b))
+            levers[key] = min(levers.get(key, math.inf), K)
+        return levers
 
     def _save_start_here(self) -> None:
         s = self.sim.state
@@ -311,12 +357,21 @@ class Collider:
     def distance(self, i, j, x, R, known=frozenset()) -> float:
         """Signed distance of bodies i and j (negative: interpenetrating by that much); with `known` (features),
         of their other features only."""
+        return self.nearest(i, j, x, R, known)[0]
+
+    def nearest(self, i, j, x, R, known=frozenset()) -> tuple:
+        """(the signed distance of bodies i and j, the world point of the feature that gives it, or None without
+        one); with `known` (features), of their other features only."""
         if self.compound is not None and (self.cp.table.compound(i) or self.cp.table.compound(j)):
-            return self.compound.distance(i, j, x, R, known)
+            return self.compound.nearest(i, j, x, R, known)
         points, normals, depths, features, a, b = self.pair_contacts(i, j, x, R, math.inf)
         if known:
-            depths = depths[[int(f) not in known for f in features]]
-        return -float(np.max(depths)) if len(depths) else math.inf
+            other = [int(f) not in known for f in features]
+            points, depths = points[other], depths[other]
+        if not len(depths):
+            return math.inf, None
+        deepest = int(np.argmax(depths))
+        return -float(depths[deepest]), points[deepest]
 
     def _known_features(self, i, j) -> frozenset:
         """The features of the lasting contacts of the pair (i, j)."""

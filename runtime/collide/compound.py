@@ -133,17 +133,24 @@ class CompoundPairs:
 
     def distance(self, i: int, j: int, x, R, known=frozenset()) -> float:
         """Signed distance of bodies i and j (negative: interpenetrating); with `known`, of their other features."""
+        return self.nearest(i, j, x, R, known)[0]
+
+    def nearest(self, i: int, j: int, x, R, known=frozenset()) -> tuple:
+        """(signed distance of bodies i and j, the world point of the feature that gives it, or None without
+        one); with `known`, of their other features."""
         ea, eb, gap = self._candidates(i, j, x, R, math.inf)
-        best = math.inf
+        best, where = math.inf, None
         for k in np.argsort(gap, kind="stable"):
             if gap[k] > best:
                 break  # no part pair further on can come nearer than its boxes' gap
-            _, _, depths, features, _, _ = self._test(int(ea[k]), int(eb[k]), math.inf)
+            points, _, depths, features, _, _ = self._test(int(ea[k]), int(eb[k]), math.inf)
             if known:
-                depths = depths[[int(f) not in known for f in features]]
-            if len(depths):
-                best = min(best, -float(np.max(depths)))
-        return best
+                other = [int(f) not in known for f in features]
+                points, depths = points[other], depths[other]
+            if len(depths) and -float(np.max(depths)) < best:
+                deepest = int(np.argmax(depths))
+                best, where = -float(depths[deepest]), points[deepest]
+        return best, where
 
 
 def fcl_elements(scene, table, elements: Elements, touchable) -> np.ndarray:

@@ -332,8 +332,10 @@ class ContactSet:
 
     def _pair_states(self) -> None:
         """Pairs with a contact: state 1 and their relative orientation now; the others apart (0), but for the
-        ones excluded now (2, left as the collision stage set them)."""
+        ones excluded now (2, left as the collision stage set them); no pair keeps a clearance (the collision
+        stage sets them anew after a look)."""
         pairs = self.sim.compiled.model.pairs
+        pairs.clear[:] = 0.0
         touching = {(c.a, c.b) for c in self.contacts.values()} | {(c.b, c.a) for c in self.contacts.values()}
         y = self.sim.state.y
         for p in range(len(pairs.a)):

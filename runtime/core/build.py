@@ -119,7 +119,9 @@ class CompiledPlan:
         turn = np.minimum(PAIR_TURN, cp.margin / arm)
         turn = np.where(round_, 10.0, turn)
         relative = np.tile([1.0, 0.0, 0.0, 0.0], (len(a), 1))
-        return shapes, M.Pairs(a, b, np.zeros(len(a), np.int64), relative, turn), float(cp.margin)
+        P = len(a)
+        return shapes, M.Pairs(a, b, np.zeros(P, np.int64), relative, turn, np.zeros(P), np.zeros(P, np.int64),
+                               np.zeros((P, 3)), np.zeros((P, 3)), np.zeros(P)), float(cp.margin)
 
     def reserve_contacts(self, instances: int, rows: int) -> None:
         """Room for at least `instances` contact instances and `rows` contact rows after the joints'."""

@@ -32,7 +32,7 @@ from . import model as M
 from .bodies import rotations
 from .data import COUNTER_TURNED_BACK
 from .jit import kernel
-from .vec import add3, cross3, dot3, norm3, rotate, row3, scale3, sub3
+from .vec import add3, cross3, dot3, norm3, rotate, rotate_t, row3, scale3, sub3
 
 # the tests' tolerances: a normal force below -FORCE_TOL (N) pulls; the cone is exceeded beyond its (1 + CONE_TOL)
 FORCE_TOL = 1e-9
@@ -421,10 +421,11 @@ def _above_plane(shapes, body, plane, y, R):
 
 @kernel
 def anything_near(shapes, pairs, y, R, y0, R0, margin):
-    """The first pair not in contact (pairs.state 0) whose bounding boxes, swept from (y0, R0) to (y, R), come
-    within `margin` of each other (or of a plane), or -1."""
+    """The first pair not in contact (pairs.state 0) that may have come within `margin` of touching: not kept
+    clear since its last look, and its bounding boxes, swept from (y0, R0) to (y, R), within `margin` of each other
+    (or of a plane); or -1."""
     for p in range(len(pairs.a)):
-        if pairs.state[p] != 0:
+        if pairs.state[p] != 0 or kept_clear(pairs, p, y, R):
             continue
         a, b = pairs.a[p], pairs.b[p]
         if shapes.kind[b] == M.SHAPE_PLANE or shapes.kind[a] == M.SHAPE_PLANE:
@@ -447,23 +448,48 @@ def anything_near(shapes, pairs, y, R, y0, R0, margin):
 
 
 @kernel
+def kept_clear(pairs, p, y, R):
+    """Whether apart pair p cannot have come within the margin since the look that set its clearance. Of its
+    bodies A (pairs.side) and B: A's point z (pairs.ref, in A's frame) has moved by delta in B's frame and A has
+    turned by theta relative to B, so any point P of A has moved by at most delta + theta |P - z| in B's frame.
+    At the look P was at least d from B, and at least |P - z| - K (K = |z - x_B| + B's reach), so the worst point
+    is at |P - z| = K + d, and none has come within the margin while delta + theta (K + d) < d - margin
+    (lever = K + d, clear = d - margin: set by the collision stage; clear 0: no clearance)."""
+    if pairs.clear[p] <= 0.0:
+        return False
+    A, B = (pairs.a[p], pairs.b[p]) if pairs.side[p] == 0 else (pairs.b[p], pairs.a[p])
+    # z in B's frame: R_B^T (x_A + R_A ref - x_B)
+    z = rotate(R, A, (pairs.ref[p, 0], pairs.ref[p, 1], pairs.ref[p, 2]))
+    z_B = rotate_t(R, B, (y[A, 0] + z[0] - y[B, 0], y[A, 1] + z[1] - y[B, 1], y[A, 2] + z[2] - y[B, 2]))
+    delta = norm3(sub3(z_B, (pairs.seen[p, 0], pairs.seen[p, 1], pairs.seen[p, 2])))
+    # theta = 2 acos(cos(theta / 2)) (the same angle for A turning relative to B and B relative to A)
+    theta = 2.0 * math.acos(min(1.0, relative_cos_half(pairs, p, y)))
+    return delta + theta * pairs.lever[p] < pairs.clear[p]
+
+
+@kernel
+def relative_cos_half(pairs, p, y):
+    """cos(angle / 2) of the turn of pair p's bodies relative to each other since pairs.relative was set:
+    |q_rel . q_rel0| for q_rel = conj(q_b) q_a."""
+    a, b = pairs.a[p], pairs.b[p]
+    qa = (y[a, 3], y[a, 4], y[a, 5], y[a, 6])
+    qb = (y[b, 3], -y[b, 4], -y[b, 5], -y[b, 6])
+    w = qb[0] * qa[0] - qb[1] * qa[1] - qb[2] * qa[2] - qb[3] * qa[3]
+    x = qb[0] * qa[1] + qb[1] * qa[0] + qb[2] * qa[3] - qb[3] * qa[2]
+    yy = qb[0] * qa[2] - qb[1] * qa[3] + qb[2] * qa[0] + qb[3] * qa[1]
+    z = qb[0] * qa[3] + qb[1] * qa[2] - qb[2] * qa[1] + qb[3] * qa[0]
+    return abs(w * pairs.relative[p, 0] + x * pairs.relative[p, 1] + yy * pairs.relative[p, 2]
+               + z * pairs.relative[p, 3])
+
+
+@kernel
 def turned_pair(pairs, y):
     """The first pair in contact (pairs.state 1) whose relative orientation turned by more than pairs.turn (rad)
     since its contacts were found (a box that tips may bring other corners down), or -1."""
     for p in range(len(pairs.a)):
         if pairs.state[p] != 1:
             continue
-        a, b = pairs.a[p], pairs.b[p]
-        # q_rel = conj(q_b) q_a, against the one at detection: cos(angle / 2) = |q_rel . q_rel0|
-        qa = (y[a, 3], y[a, 4], y[a, 5], y[a, 6])
-        qb = (y[b, 3], -y[b, 4], -y[b, 5], -y[b, 6])
-        w = qb[0] * qa[0] - qb[1] * qa[1] - qb[2] * qa[2] - qb[3] * qa[3]
-        x = qb[0] * qa[1] + qb[1] * qa[0] + qb[2] * qa[3] - qb[3] * qa[2]
-        yy = qb[0] * qa[2] - qb[1] * qa[3] + qb[2] * qa[0] + qb[3] * qa[1]
-        z = qb[0] * qa[3] + qb[1] * qa[2] - qb[2] * qa[1] + qb[3] * qa[0]
-        cos_half = abs(w * pairs.relative[p, 0] + x * pairs.relative[p, 1] + yy * pairs.relative[p, 2]
-                       + z * pairs.relative[p, 3])
-        if cos_half < math.cos(0.5 * pairs.turn[p]):
+        if relative_cos_half(pairs, p, y) < math.cos(0.5 * pairs.turn[p]):
             return p
     return -1
 

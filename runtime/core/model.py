@@ -86,9 +86,13 @@ Constraints = namedtuple("Constraints", "family body first_row rows param driver
 SHAPE_NONE, SHAPE_SPHERE, SHAPE_BOX, SHAPE_CAPSULE, SHAPE_CYLINDER, SHAPE_PLANE, SHAPE_MESH = range(7)
 Shapes = namedtuple("Shapes", "kind radius half half_length normal centre")
 # the pairs that may collide: a, b (P,); state (P,) 0 apart (the broad phase watches it), 1 in contact (its rows
-# hold it; it is watched for turning), 2 excluded now; relative (P,4) conj(q_b) q_a when its contacts were found;
-# turn (P,) how far it may turn before they are looked for again (rad); written by the collision stage
-Pairs = namedtuple("Pairs", "a b state relative turn")
+# hold it; it is watched for turning), 2 excluded now; relative (P,4) conj(q_b) q_a when its contacts were found
+# (or, apart, at the look that set its clearance); turn (P,) how far it may turn before they are looked for again
+# (rad); an apart pair's clearance at its last look (core/contact.py `kept_clear`): clear (P,) its distance less
+# the margin (m; 0: none, the swept boxes decide), side (P,) whose point ref (P,3) is, in that body's frame (0: a's,
+# 1: b's), seen (P,3) where that point was in the other body's frame, lever (P,) the arm its turning acts through
+# (m); written by the collision stage
+Pairs = namedtuple("Pairs", "a b state relative turn clear side ref seen lever")
 Model = namedtuple("Model", "n bodies kinematic springs loads constraints wind wind_column wind_count shapes pairs "
                             "margin")
 
@@ -99,7 +103,7 @@ def no_shapes(n: int) -> Shapes:
 
 def no_pairs() -> Pairs:
     z = np.zeros(0, np.int64)
-    return Pairs(z, z.copy(), z.copy(), _f((0, 4)), _f(0))
+    return Pairs(z, z.copy(), z.copy(), _f((0, 4)), _f(0), _f(0), z.copy(), _f((0, 3)), _f((0, 3)), _f(0))
 
 
 def _f(shape) -> np.ndarray:
