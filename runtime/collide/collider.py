@@ -28,9 +28,9 @@ import numpy as np
 from ..core.build import PAIR_TURN
 from ..core.contact import LIFTS, SLIPS, STOPS
 from ..core.data import COUNTER_TURNED_BACK
-from ..rotation import quat_conjugate, quat_multiply, quat_to_matrix, world_inverse_inertia
+from ..rotation import quat_to_matrix, world_inverse_inertia
 from .compound import contact_elements
-from .contacts import ContactSet
+from .contacts import ContactSet, set_relative
 from .events import EventLog
 from .narrow import closed_form
 from .pairs import BroadPhase, is_excluded, pair_keys
@@ -241,7 +241,7 @@ class Collider:
         """For each pair apart that the broad phase finds near (scan.pairs), the clearance that lets the compiled
         step go on without a look (core/contact.py kept_clear): its distance d now and its nearest point z, seen
         as a point of the body whose turning moves it least (the shorter lever K + d, K = |z - x_B| + B's reach
-        for z a point of A). A pair that touches a plane keeps the plane's own test."""
+        for z a point of A). A pair with a plane keeps the plane's own test (exact, and as cheap)."""
         if not len(scan.pairs):
             return
         s, pairs, kind = self.sim.state, self.sim.compiled.model.pairs, self.cp.table.kind
@@ -258,7 +258,7 @@ class Collider:
             A, B = (a, b) if side == 0 else (b, a)
             pairs.side[p], pairs.lever[p] = side, levers[side]
             pairs.ref[p], pairs.seen[p] = scan.R[A].T @ (z - s.x[A]), scan.R[B].T @ (z - s.x[B])
-            pairs.relative[p] = quat_multiply(quat_conjugate(s.q[b]), s.q[a])
+            set_relative(pairs, p, s.q)
             pairs.clear[p] = d - self.cp.margin
 
     def _keep_contacts(self, scan=None) -> None:

@@ -344,7 +344,7 @@ class ContactSet:
             a, b = int(pairs.a[p]), int(pairs.b[p])
             pairs.state[p] = 1 if (a, b) in touching else 0
             if pairs.state[p] == 1:
-                pairs.relative[p] = quat_multiply(quat_conjugate(y[b, 3:7]), y[a, 3:7])
+                set_relative(pairs, p, y[:, 3:7])
 
     def active_rows(self) -> np.ndarray:
         """The global rows of the contacts (after `write`)."""
@@ -364,6 +364,12 @@ class _Shape:
     offset: np.ndarray
     turn: np.ndarray
     part: int
+
+
+def set_relative(pairs, p: int, q) -> None:
+    """Pair p's relative orientation now, conj(q_b) q_a (q (n,4)): what the compiled step measures its turn from
+    (core/contact.py relative_cos_half)."""
+    pairs.relative[p] = quat_multiply(quat_conjugate(q[pairs.b[p]]), q[pairs.a[p]])
 
 
 def _world(R, b, vector):

@@ -68,8 +68,8 @@ def trace_step(y, frames, step):
 def after_step(m, act, s, y, table, j, step, frame_step, frames, f, status):
     """After step `step` (counted from 0) of a call, ending at grid row j: the traced bodies' motion, a body that
     ran away, a change of contact the collision stage must see (before its frame is recorded), then the frames due
-    now, each checked for a constraint error that ran away. Returns (the steps taken when the call must end there, else -1; the next
-    frame); status (4,) <- (code, step, body or row or contact, detail) when it ends."""
+    now, each checked for a constraint error that ran away. Returns (the steps taken when the call must end there,
+    else -1; the next frame); status (4,) <- (code, step, body or row or contact, detail) when it ends."""
     trace_step(y, frames, step)
     body = runaway_body(m.bodies, y)
     if body >= 0:
