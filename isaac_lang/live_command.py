@@ -39,7 +39,9 @@ def add_parser(commands, scene_command) -> None:
 def cmd_live(args, load, verbosity: int, default_out, check_until, overrides) -> int:
     """Load the scene (diagnostics as for every command), find its sliders, and run it live."""
     from isaac_runtime.live import LiveOptions, run_live
+    from isaac_runtime.run import load_core_in_background
 
+    load_core_in_background()  # (while the scene is parsed and planned: the clock starts after the first frames)
     loaded = load(args)
     check_until(args, loaded.scene)
     path = Path(args.scene)

@@ -27,9 +27,12 @@ import sys
 import time
 from pathlib import Path
 
-import numba
-
 from isaac_lang.imports import without
+
+# numba imports scipy, when it is installed, only to refuse a scipy older than 1.0 (pyproject asks for newer):
+# 20 to 30 ms of every run's start (the stages that need scipy import what they use of it)
+with without("scipy", why="numba"):
+    import numba
 
 OPTIONS = {"error_model": "numpy", "nogil": True, "_nrt": False}
 # the packages whose source the cached entry points are built from
@@ -49,7 +52,9 @@ def inlined(function):
 
 def entry(function):
     """A compiled entry point, cached on disk (module docstring)."""
-    return numba.njit(cache=True, **OPTIONS)(function)
+    dispatcher = numba.njit(cache=True, **OPTIONS)(function)
+    _loads_without_refreshing(dispatcher)
+    return dispatcher
 
 
 def _source_digest() -> str:
@@ -81,21 +86,25 @@ def _refresh_cache() -> None:
 _refresh_cache()
 
 
-def _load_numba_implementations() -> None:
-    """numba's target context, initialized now (a first call would do it). While numba loads its implementations,
-    `scipy.linalg` cannot be imported when nothing has imported it yet: numba then decides that it has no BLAS
-    (np.dot and np.linalg in compiled code, which the kernels do not use) instead of importing scipy.linalg for it,
-    0.19 s of the 0.7 s a cached `isaac run` may take."""
-    from numba.core.registry import cpu_target
+def _loads_without_refreshing(dispatcher) -> None:
+    """Let the entry point load its cached machine code without numba's `refresh()` of its target context first.
 
-    if "scipy.linalg" in sys.modules or "numba.np.arraymath" in sys.modules:
-        cpu_target.target_context.refresh()
+    A refresh installs every implementation numba has (its typing and lowering registries: unicode, sets, lists,
+    random, the numpy API: 0.3 to 0.45 s here, a third of a cached run's start) and only compiling needs them;
+    rebuilding cached code needs the context's code generator and the C helpers its `init` installed. A miss
+    then compiles, and numba's compiler refreshes both contexts itself before compiling (CompilerBase.__init__).
+    Any other numba (no such private methods): its own way."""
+    cache = dispatcher._cache
+    load, guard = getattr(cache, "_load_overload", None), getattr(cache, "_guard_against_spurious_io_errors", None)
+    if load is None or guard is None:
         return
-    with without("scipy.linalg", why="numba's implementations"):
-        cpu_target.target_context.refresh()
 
+    def load_overload(sig, target_context):
+        with guard():  # (an unreadable cache file counts as a miss, as numba's own load_overload has it)
+            return load(sig, target_context)
+        return None
 
-_load_numba_implementations()
+    cache.load_overload = load_overload
 
 
 def is_cached(dispatcher) -> bool:
