@@ -85,23 +85,31 @@ class CompoundPairs:
         self.el, self.fcl = elements, fcl
         count = len(elements.owner)
         self.X, self.RX = np.zeros((count, 3)), np.tile(np.eye(3), (count, 1, 1))  # element poses (scratch)
+        self._posed = {}  # body -> (its pose as bytes, its elements, their boxes lo, hi): what X, RX hold of it
 
-    def _pose(self, body: int, x, R) -> np.ndarray:
-        """The world poses of a body's elements into X, RX; returns the elements."""
+    def _pose(self, body: int, x, R) -> tuple:
+        """The world poses of a body's elements into X, RX, and their boxes: (elements, lo, hi). Remembered for
+        the pose they were computed at: a look asks for a body's at one pose for each pair it is in, for the
+        contacts and again for the distance."""
+        pose = x[body].tobytes() + R[body].tobytes()
+        known = self._posed.get(body)
+        if known is not None and known[0] == pose:
+            return known[1:]
         mine = self.el.of(body)
         self.X[mine] = x[body] + self.el.offset[mine] @ R[body].T
         self.RX[mine] = R[body] @ self.el.turn[mine]
-        return mine
+        lo, hi = boxes_of(self.el.table, mine, self.X[mine], self.RX[mine], 0.0)
+        self._posed[body] = (pose, mine, lo, hi)
+        return mine, lo, hi
 
     def _candidates(self, i, j, x, R, margin):
         """Element pairs (ea, eb) of bodies i, j with their boxes' gap (a lower bound of their distance)."""
-        ei, ej = self._pose(i, x, R), self._pose(j, x, R)
+        (ei, lo_i, hi_i), (ej, lo_j, hi_j) = self._pose(i, x, R), self._pose(j, x, R)
         table = self.el.table
         grow = 0.0 if not math.isfinite(margin) else margin
-        lo_i, hi_i = boxes_of(table, ei, self.X[ei], self.RX[ei], grow)
-        lo_j, hi_j = boxes_of(table, ej, self.X[ej], self.RX[ej], grow)
+        # boxes grown by the margin on every side: their gap shrinks by twice the margin
         with np.errstate(invalid="ignore"):  # a plane's box is infinite (its gap is set below)
-            gap = np.maximum(lo_j[None] - hi_i[:, None], lo_i[:, None] - hi_j[None]).max(axis=2)
+            gap = np.maximum(lo_j[None] - hi_i[:, None], lo_i[:, None] - hi_j[None]).max(axis=2) - 2.0 * grow
         gap[(table.kind[ei] == PLANE)[:, None] | (table.kind[ej] == PLANE)[None]] = -np.inf
         a, b = np.nonzero(gap <= 0.0) if math.isfinite(margin) else np.indices(gap.shape).reshape(2, -1)
         return ei[a], ej[b], gap[a, b]
