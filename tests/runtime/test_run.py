@@ -142,6 +142,37 @@ assert threading.active_count() == before and not fresh.signatures
     assert done.returncode == 0, done.stderr
 
 
+
+def test_a_cached_run_loads_the_core_without_numbas_implementations_and_moves_as_after_a_refresh(tmp_path):
+    # numba's refresh (every typing and lowering implementation it has: a third of a cached run's start) is for
+    # compiling; a fresh process that loads the cached step never makes it, and its motion is that of a process
+    # that made it first. A scene with contacts and one with a wind: every entry point is loaded, none compiled.
+    for scene in ("cradle", "mobile"):
+        Simulation.from_file(SCENES / f"{scene}.isaac", until=0.2).advance_to(0.2)  # (the cache warm)
+    code = """
+import sys
+from pathlib import Path
+import numpy as np
+how, out = sys.argv[1], sys.argv[2]
+if how == "refresh":
+    from numba.core.registry import cpu_target
+    cpu_target.target_context.refresh()
+from isaac_runtime.simulation import Simulation
+for scene in sys.argv[3:]:
+    sim = Simulation.from_file(scene, until=0.2)
+    sim.advance_to(0.2)
+    np.save(f"{out}/{how}-{Path(scene).stem}.npy", sim.state.y)
+assert ("numba.cpython.unicode" in sys.modules) == (how == "refresh"), "numba's implementations"
+"""
+    scenes = [str(SCENES / f"{scene}.isaac") for scene in ("cradle", "mobile")]
+    for how in ("refresh", "cached"):
+        done = subprocess.run([sys.executable, "-c", code, how, str(tmp_path), *scenes], capture_output=True,
+                              text=True)
+        assert done.returncode == 0, done.stderr
+        assert "compiling" not in done.stderr
+    for scene in ("cradle", "mobile"):
+        assert np.array_equal(np.load(tmp_path / f"refresh-{scene}.npy"), np.load(tmp_path / f"cached-{scene}.npy"))
+
 def test_a_bound_entry_calls_the_compiled_overload_after_its_first_call():
     # the step loop's later calls skip numba's typing of every argument; the motion is the dispatcher's own
     bound = Simulation.from_file(SCENES / "cradle.isaac", until=0.5)
