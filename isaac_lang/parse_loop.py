@@ -79,24 +79,29 @@ class ParseLoop:
         # the blanks after a token are matched with it (every state would skip them next: no other terminal
         # of this grammar starts with a blank), which halves the regex matches
         (blanks,) = [t.pattern.to_regexp() for t in lark.terminals if t.name == "WS" and t.name in self.ignore]
-        scanners, reductions = {}, {}
+        self._table, self._lexers, self._blanks = table.states, frontend.lexer.lexers, blanks
+        self._scanners, self._reductions = {}, {}
         # state -> (actions, match, keywords): actions maps a terminal to the next state (a shift) or to a
-        # reduction (`_reduction`), and a rule's name to the state after it (the goto)
-        self.states = {}
-        for state, entries in table.states.items():
-            lexer = frontend.lexer.lexers[state]
-            if id(lexer) not in scanners:
-                scanners[id(lexer)] = _scanner(lexer, blanks)
-            actions = {}
-            for symbol, (kind, rule) in entries.items():
-                if kind is Shift:
-                    actions[symbol] = rule
-                else:
-                    if id(rule) not in reductions:
-                        reductions[id(rule)] = _reduction(rule)
-                    actions[symbol] = reductions[id(rule)]
-            self.states[state] = (actions,) + scanners[id(lexer)]
+        # reduction (`_reduction`), and a rule's name to the state after it (the goto); each state's is made
+        # when a parse first comes to it (`_state`: a scene comes to about two thirds of the lexer's states, and
+        # making one compiles its regex, most of the time of making them all)
+        self.states = _States(self._state)
         self.gotos = {}  # (state below, rule, terminal) -> the state after the goto (see `_goto`)
+
+    def _state(self, state: int) -> tuple:
+        """(actions, match, keywords) of one LALR state (`states` above)."""
+        lexer = self._lexers[state]
+        if id(lexer) not in self._scanners:
+            self._scanners[id(lexer)] = _scanner(lexer, self._blanks)
+        actions = {}
+        for symbol, (kind, rule) in self._table[state].items():
+            if kind is Shift:
+                actions[symbol] = rule
+            else:
+                if id(rule) not in self._reductions:
+                    self._reductions[id(rule)] = _reduction(rule)
+                actions[symbol] = self._reductions[id(rule)]
+        return (actions,) + self._scanners[id(lexer)]
 
     def parse(self, text: str, start: str = "start"):
         """The tree of `text` from rule `start`; raises Rejected where lark would raise a syntax error."""
@@ -214,6 +219,19 @@ class ParseLoop:
                 break  # a shift, a reduce that builds, or an error: the loop takes it from here
             state = self.states[below][0][arg[1]]
         return state
+
+
+class _States(dict):
+    """A dictionary whose entry for a key missing from it is made (by `make(key)`) and kept when first asked for;
+    a key it already holds is found at the speed of a plain dictionary's."""
+
+    def __init__(self, make):
+        super().__init__()
+        self._make = make
+
+    def __missing__(self, key):
+        entry = self[key] = self._make(key)
+        return entry
 
 
 def _span(spans: list) -> tuple | None:

@@ -94,3 +94,16 @@ def test_mutated_scenes_parse_the_same(case):
 @given(mutated_scene())
 def test_mutated_scenes_parse_the_same_at_scale(case):
     assert_agree(case[1])
+
+
+def test_every_state_of_the_grammar_is_one_the_loop_can_run():
+    # the loop makes a state's regex and actions when a parse first comes to it: here all of them, so that a
+    # grammar change the loop cannot take (a lexer callback, over 100 terminals in a state) fails here, not in
+    # a user's scene that happens to reach that state
+    loop = parse_loop()
+    table = loop._table
+    for state in table:
+        actions, match, keywords = loop.states[state]
+        assert set(actions) == set(table[state])
+        assert callable(match) and (keywords is None or all(isinstance(k, str) for k in keywords))
+    assert len(loop.states) == len(table)

@@ -47,18 +47,24 @@ def test_expression_positions_match_lark(reference, text):
     assert spans(parse_loop().parse(text, "expr")) == spans(reference.parse(text, start="expr"))
 
 
-def test_without_hides_a_module_only_while_its_block_runs():
-    # (in a fresh interpreter: colorsys is imported by nothing else)
+def test_without_hides_a_module_only_while_its_block_runs_and_only_in_its_thread():
+    # (in a fresh interpreter: colorsys and wave are imported by nothing else)
     code = """
 import sys
 from isaac_lang.imports import without
-with without("colorsys", why="a test"):
+import threading
+with without("colorsys", "wave", why="a test"):
     try:
         import colorsys
     except ImportError as error:
         assert "hidden while a test is imported" in str(error)
     else:
         raise AssertionError("imported inside the block")
+    # another thread is not the one whose import the block is for: it imports what it wants meanwhile
+    other = threading.Thread(target=lambda: __import__("wave"))
+    other.start()
+    other.join()
+    assert "wave" in sys.modules
 import colorsys
 import lark.lexer
 assert not lark.lexer.has_interegular  # lark was imported by isaac_lang without it, installed or not

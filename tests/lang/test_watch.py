@@ -39,9 +39,12 @@ class Session:
         self._queue: queue.Queue = queue.Queue()
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         cwd = cwd or scene.parent
+        # Ctrl-C (SIGINT) stops it, also when this test runs where SIGINT is ignored (a shell's background job
+        # without job control): Python only installs its handler in a process that starts with SIGINT not ignored
         self.process = subprocess.Popen([sys.executable, *launch, "watch", str(scene.relative_to(cwd)), *args],
                                         cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                        text=True, env=env)
+                                        text=True, env=env,
+                                        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
 
