@@ -173,6 +173,58 @@ assert ("numba.cpython.unicode" in sys.modules) == (how == "refresh"), "numba's 
     for scene in ("cradle", "mobile"):
         assert np.array_equal(np.load(tmp_path / f"refresh-{scene}.npy"), np.load(tmp_path / f"cached-{scene}.npy"))
 
+
+def test_a_cached_library_is_rebuilt_from_its_symbol_list_and_parses_its_linking_module_only_when_linked(
+        tmp_path):
+    # numba parses the cached step's module for linking (about 1 MB of LLVM bitcode) only to learn the symbols it
+    # defines; the core keeps their names in a list beside the cache. A fresh process without the list parses the
+    # module once and writes the list; the next one reads the list and parses nothing, and the module can still
+    # be had (linking), with the same functions the list names. Both move the pendulum alike.
+    Simulation.from_file(SCENES / "pendulum.isaac", until=0.01).advance_to(0.01)  # (the cache warm)
+    code = """
+import sys
+import llvmlite.binding as ll
+import numpy as np
+parsed = []
+real_parse = ll.parse_bitcode
+ll.parse_bitcode = lambda data: parsed.append(len(data)) or real_parse(data)
+from isaac_runtime.core import jit
+from isaac_runtime.dynamics.integrate import run
+from isaac_runtime.simulation import Simulation
+sim = Simulation.from_file(sys.argv[1], until=0.2)
+sim.advance_to(0.2)
+np.save(sys.argv[2], sim.state.y)
+(overload,) = run.overloads.values()
+library = overload.library
+assert isinstance(library, jit._CachedLibrary) and library._shared_module is None
+print(len(parsed))
+module = library._get_module_for_linking()
+defined = {f.name for f in module.functions if not f.is_declaration}
+assert defined and defined <= jit._defined_names(library.link_bitcode)
+"""
+    listed = sorted(jit_symbols().glob("isaac-symbols-*.txt"))
+    assert listed, "the warm cache's symbol lists"
+    for path in listed:
+        path.unlink()
+    counts = []
+    for k in range(2):
+        done = subprocess.run([sys.executable, "-c", code, str(SCENES / "pendulum.isaac"),
+                               str(tmp_path / f"state-{k}.npy")],
+                              capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        assert "compiling" not in done.stderr
+        counts.append(int(done.stdout.split()[-1]))
+    assert counts[0] >= 1 and counts[1] == 0  # (the first parsed each entry's module once, for its list)
+    states = [np.load(tmp_path / f"state-{k}.npy") for k in range(2)]
+    assert np.array_equal(states[0], states[1])
+    assert sorted(jit_symbols().glob("isaac-symbols-*.txt")) == listed
+
+
+def jit_symbols() -> Path:
+    from isaac_runtime.core import jit
+
+    return jit._SYMBOLS
+
 def test_a_bound_entry_calls_the_compiled_overload_after_its_first_call():
     # the step loop's later calls skip numba's typing of every argument; the motion is the dispatcher's own
     bound = Simulation.from_file(SCENES / "cradle.isaac", until=0.5)
