@@ -35,6 +35,7 @@ from isaac_lang.imports import without
 # 20 to 30 ms of every run's start (the stages that need scipy import what they use of it)
 with without("scipy", why="numba"):
     import numba
+import llvmlite.binding as ll  # (numba's own LLVM binding, imported with it)
 
 OPTIONS = {"error_model": "numpy", "nogil": True, "_nrt": False}
 # the packages whose source the cached entry points are built from
@@ -99,7 +100,8 @@ def _loads_without_refreshing(dispatcher) -> None:
     random, the numpy API: 0.3 to 0.45 s here, a third of a cached run's start) and only compiling needs them;
     rebuilding cached code needs the context's code generator and the C helpers its `init` installed. A miss
     then compiles, and numba's compiler refreshes both contexts itself before compiling (CompilerBase.__init__).
-    Any other numba (no such private methods): its own way."""
+    The library is rebuilt by `_rebuild_library`, which skips the parse of its module for linking. Any other
+    numba (no such private methods): its own way."""
     cache = dispatcher._cache
     load, guard = getattr(cache, "_load_overload", None), getattr(cache, "_guard_against_spurious_io_errors", None)
     if load is None or guard is None:
@@ -130,7 +132,8 @@ def _rebuild_library(codegen, state, numbas):
     try:
         name, kind, (object_code, link_bitcode) = state
         defined = codegen._engine._defined_symbols
-        names = _defined_names(link_bitcode) if kind == "object" else None
+        ours = kind == "object" and codegen._library_class is _JITCodeLibrary  # (the class numba would build)
+        names = _defined_names(link_bitcode) if ours else None
     except Exception:  # noqa: BLE001 (another layout of numba's cache)
         names = None
     if names is None:
@@ -153,9 +156,7 @@ def _defined_names(bitcode: bytes) -> set | None:
         return set(listed.read_text(encoding="utf-8").split("\n")) - {""}
     except OSError:
         pass
-    try:
-        import llvmlite.binding as ll
-
+    try:  # (what numba's JitEngine._load_defined_symbols takes of a module)
         module = ll.parse_bitcode(bitcode)
         names = {g.name for group in (module.functions, module.global_variables) for g in group
                  if not g.is_declaration}
@@ -172,7 +173,7 @@ def _defined_names(bitcode: bytes) -> set | None:
 
 try:
     from numba.core.codegen import JITCodeLibrary as _JITCodeLibrary
-except ImportError:  # another numba: `_rebuild_library` is then never reached (no `_load_overload` either)
+except ImportError:  # another numba: `_rebuild_library` leaves every library to it
     _JITCodeLibrary = object
 
 
@@ -184,8 +185,6 @@ class _CachedLibrary(_JITCodeLibrary):
 
     def _get_module_for_linking(self):
         if self._shared_module is None and self.link_bitcode is not None:
-            import llvmlite.binding as ll
-
             self._shared_module = ll.parse_bitcode(self.link_bitcode)
         return super()._get_module_for_linking()
 
