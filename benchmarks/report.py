@@ -55,8 +55,15 @@ def _find(rows, **match):
 # -- targets and checks ----------------------------------------------------------------------------------------
 
 
-def targets(wp: list, ratios: list, growth: list) -> list:
+def targets(wp: list, ratios: list, growth: list, imports: list = ()) -> list:
     out = []
+    command = imports[0] if imports and "live_mobile_s" in imports[0] else None
+    for key, what, limit in [("run_pendulum_s", "cached `isaac run scenes/pendulum.isaac`, whole command", 0.7),
+                             ("live_mobile_s", "4 s of `isaac live` on the mobile with its breath, whole command",
+                              5.5)]:
+        value = float(command[key]) if command else math.nan
+        out.append({"target": f"{what} <= {g(limit)} s", "measured": f"{g(value, 3)} s",
+                    "met": bool(command) and value <= limit})
     for case in PENDULUMS + ("chain",):
         metric = "energy_drift" if case == "chain" else "period_error"
         best = None
@@ -216,6 +223,10 @@ def specialization_table(rows: list, imports: list) -> str:
                  f"{g(c['python_startup_s'], 2)} s), of which imports {g(c['imports_s'], 3)} s "
                  f"({int(c['modules'])} modules; own import time by package: {packages}). "
                  f"Optional modules imported: {', '.join(flagged) or 'none'}.\n")
+        if "live_mobile_s" in c:
+            text += (f"\nWhole processes, cached core: `isaac run scenes/pendulum.isaac` {g(c['run_pendulum_s'], 3)} s; "
+                     f"`isaac live scenes/mobile.isaac --mic scenes/assets/breath.wav --until {g(c['live_until_s'])}` "
+                     f"{g(c['live_mobile_s'], 3)} s, of which {g(c['live_until_s'])} s paced to the clock.\n")
     return text
 
 
@@ -247,7 +258,7 @@ def summarize(out: Path) -> tuple:
     present = {name: (out / name).is_file() for name in ("work_precision.csv", "work_precision.png",
                                                          "peer_ratios.csv", "scaling.csv", "scaling.png",
                                                          "stress.csv")}
-    tg, ck = targets(wp, ratios, growth), checks(ratios, growth, stress, present)
+    tg, ck = targets(wp, ratios, growth, imports), checks(ratios, growth, stress, present)
     m = info.get("machine", {})
     parts = [f"Run: `isaac bench{' --quick' if info.get('mode') == 'quick' else ''}`, {m.get('when', '?')}, "
              f"{m.get('cpus', '?')} CPUs, load {g(m.get('load_1min', math.nan), 2)} at the start; Python "

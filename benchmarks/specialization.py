@@ -8,7 +8,9 @@
    in-process run (simulate, with its audio stage when the plan has one) of one simulated second.
 2. The import cost of the command: `isaac run` on the pendulum under `python -X importtime`, the whole command's
    wall time, the interpreter's own start-up for reference, and whether soundfile, fcl, matplotlib or the
-   audio, collision and wind stages were imported (they must not be).
+   audio, collision and wind stages were imported (they must not be). Beside it the whole processes the issues
+   check: `isaac run scenes/pendulum.isaac` (cached core) and 4 s of `isaac live scenes/mobile.isaac` with its
+   breath from scenes/assets/breath.wav (4 s paced, the rest start-up and outputs).
 Writes specialization.csv and imports.csv.
 """
 from __future__ import annotations
@@ -130,6 +132,9 @@ def side_by_side(texts: list, window: float, run_until: float) -> list:
     return list(zip(step, run))
 
 
+LIVE_UNTIL = 4.0  # s of `isaac live scenes/mobile.isaac --mic scenes/assets/breath.wav` (issue 16's check)
+
+
 def command_imports(out_dir: Path) -> tuple:
     """(summary row, top imports) of `isaac run scenes/pendulum.isaac` under -X importtime."""
     args = ["-m", "isaac_lang.cli", "run", str(common.SCENES / "pendulum.isaac"), "--until", "0.01", "--quiet",
@@ -141,6 +146,12 @@ def command_imports(out_dir: Path) -> tuple:
     imports = _parse_importtime(done.stderr)
     wall = min(_wall([sys.executable, *args]) for _ in range(3))
     bare = min(_wall([sys.executable, "-c", "pass"]) for _ in range(3))
+    # issue 13's and issue 16's checks, whole processes: the shipped pendulum's run, and 4 s of the mobile live
+    pendulum = min(_wall([sys.executable, "-m", "isaac_lang.cli", "run", str(common.SCENES / "pendulum.isaac"),
+                          "--quiet", "--out", str(out_dir / "pendulum")]) for _ in range(3))
+    live = min(_wall([sys.executable, "-m", "isaac_lang.cli", "live", str(common.SCENES / "mobile.isaac"), "--mic",
+                      str(common.SCENES / "assets" / "breath.wav"), "--until", str(LIVE_UNTIL), "--port", "0",
+                      "--no-browser", "--no-viewer", "--quiet", "--out", str(out_dir / "live")]) for _ in range(2))
     names = {i["module"] for i in imports}
     packages: dict = {}
     for i in imports:  # own import time summed per top-level package
@@ -148,7 +159,8 @@ def command_imports(out_dir: Path) -> tuple:
         packages[package] = packages.get(package, 0) + i["self_us"]
     top = sorted(({"module": k, "cumulative_us": v} for k, v in packages.items()), key=lambda i: -i["cumulative_us"])
     row = {"command": "isaac run scenes/pendulum.isaac --until 0.01", "exit": done.returncode, "wall_s": wall,
-           "python_startup_s": bare, "imports_s": sum(packages.values()) / 1e6,
+           "python_startup_s": bare, "imports_s": sum(packages.values()) / 1e6, "run_pendulum_s": pendulum,
+           "live_mobile_s": live, "live_until_s": LIVE_UNTIL,
            "modules": len(imports), "traced_wall_s": traced,
            **{f"imports {m}": m in names for m in OPTIONAL}}
     return row, top[:12]
@@ -186,7 +198,8 @@ def run(quick: bool = False, out: Path | None = None) -> dict:
         row["step_s_side_by_side"], row[f"run_{RUN_UNTIL:g}s_side_by_side"] = step, whole
     with tempfile.TemporaryDirectory() as tmp:
         command, top = command_imports(Path(tmp))
-    common.log(f"  command: {command['wall_s']:.2f} s wall (python alone {command['python_startup_s']:.2f} s), "
+    common.log(f"  command: {command['wall_s']:.2f} s wall (python alone {command['python_startup_s']:.2f} s; "
+               f"pendulum run {command['run_pendulum_s']:.2f} s, {LIVE_UNTIL:g} s live {command['live_mobile_s']:.2f} s), "
                f"imports {command['imports_s']:.2f} s; optional imported: "
                f"{[k[8:] for k, v in command.items() if k.startswith('imports ') and v]}")
     result = {"variants": rows, "command": command, "top_imports": top}

@@ -1,5 +1,7 @@
-"""Imports that a command's start-up should not pay for: `without(names)` hides modules while another package is
-imported, so that it takes the path it has for their absence.
+"""Imports that a command's start-up should not pay for.
+
+`without(names)` hides modules while another package is imported, so that it takes the path it has for their
+absence:
 
     with without("interegular"):     # lark then skips the terminal-collision check it runs when interegular
         import lark                  # is installed (40 ms of every command's start)
@@ -7,11 +9,22 @@ imported, so that it takes the path it has for their absence.
 Only for the moment of that import, and only in the thread that makes it: a later `import interegular` works as
 usual, and so does one that another thread makes meanwhile (`isaac watch` imports the runtime, numba with it, in
 a thread while the scene is loaded, and loading a scene may import scipy).
+
+`lazily(name)` imports a module that a package imports at its top but uses only on a path a run never takes:
+the module's code runs at its first use, if any (the standard library's `importlib.util.LazyLoader`).
+
+    lazily("importlib.metadata")     # numba reads the installed packages' entry points only to compile
+    import numba                     # (`from importlib import metadata`)
+
+A first use is any attribute, `__spec__` too: a later `import importlib.metadata` statement runs it (Python's
+import asks a module found in sys.modules whether it is still being initialised), `from importlib import
+metadata` does not.
 """
 from __future__ import annotations
 
 import contextlib
 import importlib.abc
+import importlib.util
 import sys
 import threading
 
@@ -39,3 +52,20 @@ def without(*names: str, why: str = "another package"):
         yield
     finally:
         sys.meta_path.remove(guard)
+
+
+def lazily(name: str) -> None:
+    """Put `name` in sys.modules as a module whose code runs at its first attribute access (module docstring). An
+    imported module, or one that cannot be found, is left as it is."""
+    if name in sys.modules:
+        return
+    spec = importlib.util.find_spec(name)
+    if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+        return
+    spec.loader = importlib.util.LazyLoader(spec.loader)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    parent, _, child = name.rpartition(".")
+    if parent:
+        setattr(sys.modules[parent], child, module)

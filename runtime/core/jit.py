@@ -29,11 +29,14 @@ import sys
 import time
 from pathlib import Path
 
-from isaac_lang.imports import without
+from isaac_lang.imports import lazily, without
 
 # numba imports scipy, when it is installed, only to refuse a scipy older than 1.0 (pyproject asks for newer):
-# 20 to 30 ms of every run's start (the stages that need scipy import what they use of it)
-with without("scipy", why="numba"):
+# 20 to 30 ms of every run's start (the stages that need scipy import what they use of it); and yaml, to read a
+# .numba_config.yaml in the working folder, when there is one (10 ms). It imports importlib.metadata for the entry
+# points of its extensions, which it reads only to compile (`_defer_extensions`): that code runs if used (20 ms)
+lazily("importlib.metadata")
+with without("scipy", *(() if os.path.isfile(".numba_config.yaml") else ("yaml",)), why="numba"):
     import numba
 import llvmlite.binding as ll  # (numba's own LLVM binding, imported with it)
 
@@ -104,7 +107,8 @@ def _loads_without_refreshing(dispatcher) -> None:
     numba (no such private methods): its own way."""
     cache = dispatcher._cache
     load, guard = getattr(cache, "_load_overload", None), getattr(cache, "_guard_against_spurious_io_errors", None)
-    if load is None or guard is None:
+    init = getattr(dispatcher, "_compilation_chain_init_hook", None)
+    if load is None or guard is None or init is None:
         return
 
     def load_overload(sig, target_context):
@@ -112,14 +116,26 @@ def _loads_without_refreshing(dispatcher) -> None:
         numbas = codegen.unserialize_library
         # (numba holds its compiler lock over a load: no other load sees the library maker swapped)
         codegen.unserialize_library = lambda state: _rebuild_library(codegen, state, numbas)
+        loaded = None
         try:
             with guard():  # (an unreadable cache file counts as a miss, as numba's own load_overload has it)
-                return load(sig, target_context)
-            return None
+                loaded = load(sig, target_context)
         finally:
             del codegen.unserialize_library
+        if loaded is None:
+            init()  # a miss: the extensions as numba has them before it compiles (`_defer_extensions`)
+        return loaded
 
     cache.load_overload = load_overload
+    _defer_extensions(dispatcher)
+
+
+def _defer_extensions(dispatcher) -> None:
+    """numba initialises the extensions installed beside it (the `numba_extensions` entry points of every
+    installed package: importlib.metadata imported and the packages' metadata read, 30 ms here) before the first
+    call of any dispatcher, for the types they may add to what it compiles. A cached entry point compiles nothing;
+    its load, on a miss, initialises them before numba compiles (`load_overload` above)."""
+    dispatcher._compilation_chain_init_hook = lambda: None
 
 
 def _rebuild_library(codegen, state, numbas):

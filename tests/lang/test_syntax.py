@@ -71,3 +71,24 @@ assert not lark.lexer.has_interegular  # lark was imported by isaac_lang without
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+def test_lazily_imports_a_module_whose_code_runs_at_its_first_use():
+    # (in a fresh interpreter: colorsys is imported by nothing else)
+    code = """
+import sys
+from isaac_lang.imports import lazily
+lazily("colorsys")
+lazily("no_such_module_here")
+assert "no_such_module_here" not in sys.modules
+module = sys.modules["colorsys"]
+assert type(module).__name__ == "_LazyModule"  # in sys.modules, its code not run
+from colorsys import rgb_to_hsv  # its first use runs it
+assert type(module).__name__ == "module" and rgb_to_hsv(1.0, 0.0, 0.0) == (0.0, 1.0, 1.0)
+lazily("importlib.metadata")  # a submodule: its parent package has it as an attribute, as an import leaves it
+import importlib
+assert importlib.metadata is sys.modules["importlib.metadata"] and "email" not in sys.modules
+assert importlib.metadata.version("lark")
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
