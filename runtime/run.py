@@ -248,7 +248,8 @@ def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, er
     stages = plan.stages()
     return {
         "scene": plan.scene.name, "solver": plan.solver, "integrator": plan.integrator, "step": plan.step,
-        "step_reason": plan.step_reason, "steps": sim.state.steps, "simulated_time": sim.state.t - plan.start,
+        "step_reason": plan.step_reason, "steps": sim.state.steps, "steps_at_rest": sim.steps_at_rest(),
+        "simulated_time": sim.state.t - plan.start,
         "wall_time": wall, "frames": int(len(arrays["time"])),
         "stages_run": [k for k, v in stages.items() if v], "stages_skipped": [k for k, v in stages.items() if not v],
         "linear_solvers": sorted({e.solver for e in plan.constraints.epochs} - {"none"}) if plan.constraints else [],

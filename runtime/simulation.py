@@ -169,6 +169,10 @@ class Simulation:
         """Whether a solve found redundant constraints (J M^-1 J^T singular) so far."""
         return bool(self.compiled.scratch.counters[D.COUNTER_RANK])
 
+    def steps_at_rest(self) -> int:
+        """Steps that found the scene at rest and left its state as it was (core/rest.py)."""
+        return int(self.compiled.scratch.counters[D.COUNTER_RESTING])
+
     def constraint_residuals(self) -> tuple:
         """({global row: |C|} of the active position rows, [rows the last solve dropped as dependent]) at the
         current state (runtime/checks.py names the constraints that cannot all hold from them)."""

@@ -26,9 +26,10 @@ Block = namedtuple("Block", "K rhs x J D dx")
 # the next evaluations (core/solve.py `solve_again`): [3] 1 while Lx holds the factor of the active rows' whole
 # J M^-1 J^T (0: it does not, or it was never made), [4] how many rows that factorization dropped, [5] evaluations
 # still to factor afresh before the kept factor is tried again, [6] the length of the last such wait, [7]
-# evaluations that the kept factor served
+# evaluations that the kept factor served; [8] steps taken at rest, the state left as it was (core/rest.py)
 COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_TURNED_BACK = 0, 1, 2
 COUNTER_KEPT, COUNTER_KEPT_DROPPED, COUNTER_WAIT, COUNTER_BACKOFF, COUNTER_REUSED = 3, 4, 5, 6, 7
+COUNTER_RESTING = 8
 
 
 def initial_state(plan) -> np.ndarray:
@@ -58,4 +59,4 @@ def allocate_scratch(n: int, param: np.ndarray, rows: int, fill: int = 1) -> Scr
         impulse=np.zeros(max(len(param), 1)), air=np.zeros((b, 4)),
         block=Block(np.zeros((3, 3)), np.zeros(3), np.zeros(3), np.zeros((3, 2, 6)), np.zeros((3, 2, 6)),
                     np.zeros(6)),
-        counters=np.zeros(8, np.int64))
+        counters=np.zeros(9, np.int64))

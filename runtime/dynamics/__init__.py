@@ -12,12 +12,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.jit import Bound
+from ..core.rest import REST_STEPS
 from .integrate import GRID, INTEGRATORS, run
 
 
 class DynamicsStepper:
     grid = GRID  # time-table rows per step
     entries = (run,)  # the compiled entry points it calls
+    rest_after = REST_STEPS  # steps at rest before the loop stops integrating (core/rest.py; 0: never)
 
     def __init__(self, compiled, plan):
         self.compiled = compiled
@@ -31,7 +33,7 @@ class DynamicsStepper:
         table = c.tabulate(t0, h, steps, GRID)
         entering, self.entering = self.entering is act, None
         return self._run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status,
-                         entering)
+                         entering, self.rest_after)
 
     def enter(self, act, y, t: float) -> None:
         """A new epoch begins at t: its first run starts by putting the held rows on their manifold."""

@@ -6,9 +6,9 @@ RK4 (classic Runge-Kutta), MIDPOINT (explicit RK2) and EULER (semi-implicit: vel
 with the new velocities, the orientation turned exactly by w h). Quaternions are renormalized at every stage.
 After each step: kinematic bodies exactly on their paths, the projection of the held rows (projection.py),
 rows that finished assembling join them, and a check for a blow-up (a non-finite state, or a speed beyond
-RUNAWAY_SPEED). The time table has 2 rows per step (t, t + h/2, t + h at rows 2i, 2i+1, 2i+2).
+RUNAWAY_SPEED). A scene at rest stops being integrated while its inputs stay constant (core/rest.py). The time table has 2 rows per step (t, t + h/2, t + h at rows 2i, 2i+1, 2i+2).
 
-`run(m, act, s, y, table, integrator, t0, h, steps, frame_step, frames, status)` advances y by `steps` steps of h
+`run(m, act, s, y, table, integrator, t0, h, steps, frame_step, frames, status, entering, rest_after)` advances y by `steps` steps of h
 from t0 (step i at t0 + i h, no accumulated sum); after step frame_step[f] (0: before the first) it records frame
 f: frames.y[f] the state, frames.energy[f], frames.error[f] the largest |C| of the active rows and
 frames.worst[f] that row. status (4,) <- (code, step, body or row or contact, detail): code 0 done,
@@ -21,9 +21,10 @@ import math
 
 from ..core.bodies import copy_state, normalize_quaternions, place_kinematic
 from ..core.contact import add_impulses
-from ..core.data import COUNTER_KEPT, COUNTER_TURNED_BACK
+from ..core.data import COUNTER_KEPT, COUNTER_RESTING, COUNTER_TURNED_BACK
 from ..core.jit import entry, inlined, kernel
 from ..core.record import DONE, after_step, record
+from ..core.rest import inputs_still, standing_still
 from .accelerations import accelerations
 from .projection import project, settle_rows
 
@@ -137,10 +138,12 @@ def one_step(m, act, s, y, table, integrator, j, h):
 
 
 @entry
-def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering):
+def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after):
     """Advance y by `steps` steps of h (module docstring); `entering` an epoch, first the held rows onto their
     manifold (a row that switched on with its points together but moving apart is held from this instant). A step
-    after which the collision stage must look ends the call before its frame is recorded (status CONTACT)."""
+    after which the collision stage must look ends the call before its frame is recorded (status CONTACT). After
+    `rest_after` steps in a row at rest (core/rest.py; 0: never) the steps leave the state as it is while the
+    inputs stay constant."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     s.counters[COUNTER_KEPT] = 0  # (a factor in Lx from an earlier call may be of other rows)
     if entering:
@@ -149,10 +152,16 @@ def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, e
     while f < len(frame_step) and frame_step[f] == 0:
         record(m, act, s, y, table, 0, frames, f)
         f += 1
+    still = 0  # steps in a row, with constant inputs, that left every body at rest
     for step in range(steps):
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
-        one_step(m, act, s, y, table, integrator, GRID * step, h)
+        steady = inputs_still(table, GRID * step, GRID)
+        if steady and 0 < rest_after <= still:
+            s.counters[COUNTER_RESTING] += 1
+        else:
+            one_step(m, act, s, y, table, integrator, GRID * step, h)
+            still = still + 1 if steady and standing_still(m, act, y, s.start, h) else 0
         if len(m.pairs.a):
             add_impulses(act, m.constraints, s.lam, act.local, h, s.impulse)
         taken, f = after_step(m, act, s, y, table, GRID * (step + 1), step, frame_step, frames, f, status)

@@ -15,6 +15,7 @@ import numpy as np
 from ..core.entries import measure, row_errors
 from ..core.jit import Bound
 from ..core.model import GEAR, ROPE
+from ..core.rest import REST_STEPS
 from .loop import run
 from .project import Curves, Sweep
 
@@ -26,6 +27,7 @@ DIRECT_MAX_ROWS = 64
 
 class ProceduralStepper:
     entries = (run, measure)  # the compiled entry points it calls
+    rest_after = REST_STEPS  # steps at rest before the loop stops integrating (core/rest.py; 0: never)
 
     def __init__(self, compiled, plan):
         options = plan.scene.solver
@@ -43,7 +45,7 @@ class ProceduralStepper:
         all_at_once = self.projection == "direct" or (self.projection == "auto" and (
             len(act.rows) <= DIRECT_MAX_ROWS or bool(len(act.rows)) and act.rows.max() >= c.joint_rows))
         return self._run(c.model, act, sw, curves, c.scratch, y, table, h, steps, self.grid, self.iterations,
-                         all_at_once, frame_step, frames, status)
+                         all_at_once, frame_step, frames, status, self.rest_after)
 
     def enter(self, act, y, t: float) -> None:
         """A new epoch at t: the sweep order of its instances, and the curves of its rows still assembling

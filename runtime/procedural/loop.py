@@ -14,10 +14,11 @@ import math
 
 from ..core.bodies import copy_state, place_kinematic, rotations
 from ..core.contact import add_impulses, friction_impulses
-from ..core.data import COUNTER_TURNED_BACK
+from ..core.data import COUNTER_RESTING, COUNTER_TURNED_BACK
 from ..core.forces import add_loads, add_springs, weights
 from ..core.jit import entry, kernel
 from ..core.record import DONE, after_step, record
+from ..core.rest import inputs_still, standing_still
 from ..core.rows import apply_drivers
 from ..core.timetable import TIME
 from ..wind.kernels import wind_relax
@@ -79,17 +80,27 @@ def procedural_step(m, act, sw, curves, s, y, table, j, h, substeps, iterations,
 
 
 @entry
-def run(m, act, sw, curves, s, y, table, h, steps, substeps, iterations, all_at_once, frame_step, frames, status):
-    """Advance y by `steps` steps of h (as dynamics/integrate.run, with the procedural step)."""
+def run(m, act, sw, curves, s, y, table, h, steps, substeps, iterations, all_at_once, frame_step, frames, status,
+        rest_after):
+    """Advance y by `steps` steps of h (as dynamics/integrate.run, with the procedural step; at rest as there)."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
         record(m, act, s, y, table, 0, frames, f)
         f += 1
+    still = 0  # steps in a row, with constant inputs, that left every body at rest
     for step in range(steps):
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
-        procedural_step(m, act, sw, curves, s, y, table, substeps * step, h, substeps, iterations, all_at_once)
+        steady = inputs_still(table, substeps * step, substeps)
+        if steady and 0 < rest_after <= still:
+            s.counters[COUNTER_RESTING] += 1
+            if len(act.rows) and len(m.pairs.a):
+                # the contacts' impulses of the step's substeps, as its forces (s.lam) gave them: lambda h
+                add_impulses(act, m.constraints, s.lam, act.local, h, s.impulse)
+        else:
+            procedural_step(m, act, sw, curves, s, y, table, substeps * step, h, substeps, iterations, all_at_once)
+            still = still + 1 if steady and standing_still(m, act, y, s.start, h) else 0
         taken, f = after_step(m, act, s, y, table, substeps * (step + 1), step, frame_step, frames, f, status)
         if taken >= 0:
             return taken

@@ -10,6 +10,7 @@ import pytest
 
 import isaac_runtime.core.structure as structure
 from isaac_runtime.core.data import COUNTER_REUSED
+from isaac_runtime.dynamics import DynamicsStepper
 from isaac_runtime.simulation import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
@@ -17,6 +18,7 @@ SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
 def _run(name: str, until: float, keep: bool, monkeypatch, overrides=None):
     structure._BUILT.clear()  # (structures are cached by their rows: the one built without keeping must not serve)
+    monkeypatch.setattr(DynamicsStepper, "rest_after", 0)  # (every step evaluated: none left at rest, core/rest.py)
     if not keep:
         monkeypatch.setattr(structure, "affordable_corrections", lambda Lp, couplings: -1)
     sim = Simulation.from_file(SCENES / f"{name}.isaac", overrides or {}, until=until)

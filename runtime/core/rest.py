@@ -1,0 +1,61 @@
+"""Steps at rest: a scene that has come to rest pays nothing for standing still.
+
+A tower of boxes on a floor, a box held on a slope by static friction, a ball that has stopped bouncing: the
+contact rows and the projection hold them still to round-off (speeds of 1e-14 m/s and below), and every further
+step computes the same state again. The step loops (dynamics/integrate.py, procedural/loop.py) stop integrating
+once, for `rest_after` steps in a row,
+
+    every body             |v|, |w| <= REST_SPEED   and   |v(t + h) - v(t)|, |w(t + h) - w(t)| <= REST_ACCELERATION h
+    every active row       held (none still assembling along its curve)
+    the inputs             the time table's rows of the step equal the one at its start (kinematic paths, loads,
+                           moving constraint parameters: all constant), and no body feels a wind (its gusts are
+                           functions of time computed inside the kernel)
+
+and from then on each step leaves the state as it is, for as long as the inputs stay constant. The rest of a step
+goes on as usual: the contacts' impulses (lambda h), the traced motion, the frames and their checks. A step whose
+inputs change ends the rest: it is integrated, and rest must be found again. Other changes of what moves the
+bodies end a call of the loop anyway (a constraint switching, a look of the collision stage, a live input), and
+each call finds rest afresh.
+
+The state at rest is an equilibrium to these bounds: over a time T a body left where it stands would have moved at
+most REST_SPEED T + REST_ACCELERATION T^2 / 2 (1e-8 m over 10 s). An unstable equilibrium (a pencil on its tip,
+exactly upright) stays standing, as it would in exact arithmetic; one perturbed by less than the bounds does too.
+"""
+from __future__ import annotations
+
+from .jit import inlined
+from .timetable import TIME
+
+# m/s and rad/s: the speed of a body at rest, at most
+REST_SPEED = 1e-9
+# m/s^2 and rad/s^2: the change of its velocities over a step at rest, at most, per second of the step
+REST_ACCELERATION = 1e-9
+# steps in a row that find every body at rest before the loops stop integrating (0 in `rest_after`: never)
+REST_STEPS = 10
+
+
+@inlined
+def standing_still(m, act, y, start, h):
+    """Whether the step of h from `start` to `y` left every body at rest (module docstring), with every active row
+    held and no wind."""
+    if len(m.wind.body):
+        return False
+    for i in range(len(act.rows)):
+        if not act.held[i]:
+            return False
+    change = REST_ACCELERATION * h
+    for b in range(len(y) - 1):  # (every body: a static one declared with a velocity drifts with it)
+        for c in range(7, 13):
+            if not (abs(y[b, c]) <= REST_SPEED and abs(y[b, c] - start[b, c]) <= change):
+                return False
+    return True
+
+
+@inlined
+def inputs_still(table, j, rows):
+    """Whether the time table's rows j + 1 .. j + rows equal row j, but for the time itself."""
+    for k in range(j + 1, j + rows + 1):
+        for c in range(table.shape[1]):
+            if c != TIME and table[k, c] != table[j, c]:
+                return False
+    return True
