@@ -103,8 +103,16 @@ def write_npz(path: Path, arrays: dict) -> None:
 
 
 def write_json(path: Path, data) -> None:
-    """Strict JSON (any reader loads it): a figure that is not finite (a blow-up's NaN or infinity) is null."""
-    text = json.dumps(finite_or_null(data), indent=1, sort_keys=True, allow_nan=False)
+    """Strict JSON (any reader loads it): a figure that is not finite (a blow-up's NaN or infinity) is null. A list
+    (events.json) is written one item a line: a run's thousands of contact events in a third of the time of the
+    indented form (the standard library's encoder is compiled only for the unindented one), and one event a line
+    to read or grep."""
+    data = finite_or_null(data)
+    if isinstance(data, list):
+        encode = json.JSONEncoder(sort_keys=True, allow_nan=False).encode
+        text = "[\n" + ",\n".join(map(encode, data)) + "\n]" if data else "[]"
+    else:
+        text = json.dumps(data, indent=1, sort_keys=True, allow_nan=False)
     write_atomic(path, (text + "\n").encode())
 
 

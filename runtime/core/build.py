@@ -135,6 +135,8 @@ class CompiledPlan:
         old = self.scratch
         self.scratch = D.allocate_scratch(self.plan.n, cons.param, len(cons.row_instance), len(old.Lx))
         self.scratch.param[:len(old.param)] = old.param
+        for counter in D.CUMULATIVE_COUNTERS:  # (the others describe the old buffers: they start afresh)
+            self.scratch.counters[counter] = old.counters[counter]
         self.row_held = np.concatenate((self.row_held, np.zeros(grow_r, np.bool_)))
         self.row_seen = np.concatenate((self.row_seen, np.zeros(grow_r, np.bool_)))
         self._actives.clear()

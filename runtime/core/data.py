@@ -18,7 +18,7 @@ STAGES = 4  # slopes kept by the integrators (RK4's four)
 
 Scratch = namedtuple("Scratch", "R inv_inertia force torque acc param C J ct bias MJ Jd rhs lam dlam diag work dropped "
                                 "include Lx target correction delta k y0 ys start R0 friction impulse air block "
-                                "counters")
+                                "rested counters")
 # the buffers of one small block (an instance's rows, at most 3) of the procedural projection
 Block = namedtuple("Block", "K rhs x J D dx")
 # counters: [0] evaluations whose solve dropped a dependent row, [1] projections done, [2] 1 + the first sliding
@@ -26,10 +26,13 @@ Block = namedtuple("Block", "K rhs x J D dx")
 # the next evaluations (core/solve.py `solve_again`): [3] 1 while Lx holds the factor of the active rows' whole
 # J M^-1 J^T (0: it does not, or it was never made), [4] how many rows that factorization dropped, [5] evaluations
 # still to factor afresh before the kept factor is tried again, [6] the length of the last such wait, [7]
-# evaluations that the kept factor served; [8] steps taken at rest, the state left as it was (core/rest.py)
+# evaluations that the kept factor served; [8] steps taken at rest, the state left as it was (core/rest.py), [9]
+# the steps in a row at rest when the last call ended, in the state `rested` (the state it ended with)
 COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_TURNED_BACK = 0, 1, 2
 COUNTER_KEPT, COUNTER_KEPT_DROPPED, COUNTER_WAIT, COUNTER_BACKOFF, COUNTER_REUSED = 3, 4, 5, 6, 7
-COUNTER_RESTING = 8
+COUNTER_RESTING, COUNTER_STILL = 8, 9
+# the counts of a whole run, kept when the buffers grow (core/build.py reserve_contacts)
+CUMULATIVE_COUNTERS = (COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_REUSED, COUNTER_RESTING)
 
 
 def initial_state(plan) -> np.ndarray:
@@ -59,4 +62,4 @@ def allocate_scratch(n: int, param: np.ndarray, rows: int, fill: int = 1) -> Scr
         impulse=np.zeros(max(len(param), 1)), air=np.zeros((b, 4)),
         block=Block(np.zeros((3, 3)), np.zeros(3), np.zeros(3), np.zeros((3, 2, 6)), np.zeros((3, 2, 6)),
                     np.zeros(6)),
-        counters=np.zeros(9, np.int64))
+        rested=np.zeros((b, PACKED)), counters=np.zeros(10, np.int64))

@@ -13,9 +13,11 @@ once, for `rest_after` steps in a row,
 
 and from then on each step leaves the state as it is, for as long as the inputs stay constant. The rest of a step
 goes on as usual: the contacts' impulses (lambda h), the traced motion, the frames and their checks. A step whose
-inputs change ends the rest: it is integrated, and rest must be found again. Other changes of what moves the
-bodies end a call of the loop anyway (a constraint switching, a look of the collision stage, a live input), and
-each call finds rest afresh.
+inputs change ends the rest: it is integrated, and rest must be found again. A call of the loop goes on with the
+count of the call before (`still_at_start`: a scene with sound, or live, steps a call a frame) only when it starts
+from the state that call ended with and with the same active rows; whatever changed the state or the rows in
+between (an impulse of the collision stage, a contact made or lost, a constraint switching, a drag) starts the
+count afresh.
 
 The state at rest is an equilibrium to these bounds: over a time T a body left where it stands would have moved at
 most REST_SPEED T + REST_ACCELERATION T^2 / 2 (1e-8 m over 10 s). An unstable equilibrium (a pencil on its tip,
@@ -23,6 +25,7 @@ exactly upright) stays standing, as it would in exact arithmetic; one perturbed 
 """
 from __future__ import annotations
 
+from .data import COUNTER_STILL
 from .jit import inlined
 from .timetable import TIME
 
@@ -59,3 +62,25 @@ def inputs_still(table, j, rows):
             if c != TIME and table[k, c] != table[j, c]:
                 return False
     return True
+
+
+@inlined
+def still_at_start(s, y, carry):
+    """The steps in a row at rest to go on from: the last call's count if `carry` (the same active rows) and y is
+    the state that call ended with, else 0."""
+    if not carry:
+        return 0
+    for b in range(len(y)):
+        for c in range(13):
+            if y[b, c] != s.rested[b, c]:
+                return 0
+    return s.counters[COUNTER_STILL]
+
+
+@inlined
+def still_at_end(s, y, still):
+    """Keep the count and the state a call ends with, for the next (`still_at_start`); returns nothing."""
+    s.counters[COUNTER_STILL] = still
+    for b in range(len(y)):
+        for c in range(13):
+            s.rested[b, c] = y[b, c]

@@ -25,6 +25,7 @@ class DynamicsStepper:
         self.compiled = compiled
         self.integrator = INTEGRATORS[plan.integrator]
         self.entering = None  # the Active rows of an epoch just entered, until its first run
+        self.last_rows = None  # the Active rows of the last run (its count of steps at rest goes on with them)
         self._run = Bound(run)
 
     def run(self, act, y, t0: float, h: float, steps: int, frame_step, frames, status) -> int:
@@ -32,8 +33,9 @@ class DynamicsStepper:
         c = self.compiled
         table = c.tabulate(t0, h, steps, GRID)
         entering, self.entering = self.entering is act, None
+        carry, self.last_rows = self.last_rows is act, act
         return self._run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status,
-                         entering, self.rest_after)
+                         entering, self.rest_after, carry)
 
     def enter(self, act, y, t: float) -> None:
         """A new epoch begins at t: its first run starts by putting the held rows on their manifold."""

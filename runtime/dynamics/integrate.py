@@ -8,7 +8,7 @@ After each step: kinematic bodies exactly on their paths, the projection of the 
 rows that finished assembling join them, and a check for a blow-up (a non-finite state, or a speed beyond
 RUNAWAY_SPEED). A scene at rest stops being integrated while its inputs stay constant (core/rest.py). The time table has 2 rows per step (t, t + h/2, t + h at rows 2i, 2i+1, 2i+2).
 
-`run(m, act, s, y, table, integrator, t0, h, steps, frame_step, frames, status, entering, rest_after)` advances y by `steps` steps of h
+`run(m, act, s, y, table, integrator, t0, h, steps, frame_step, frames, status, entering, rest_after, carry)` advances y by `steps` steps of h
 from t0 (step i at t0 + i h, no accumulated sum); after step frame_step[f] (0: before the first) it records frame
 f: frames.y[f] the state, frames.energy[f], frames.error[f] the largest |C| of the active rows and
 frames.worst[f] that row. status (4,) <- (code, step, body or row or contact, detail): code 0 done,
@@ -24,7 +24,7 @@ from ..core.contact import add_impulses
 from ..core.data import COUNTER_KEPT, COUNTER_RESTING, COUNTER_TURNED_BACK
 from ..core.jit import entry, inlined, kernel
 from ..core.record import DONE, after_step, record
-from ..core.rest import inputs_still, standing_still
+from ..core.rest import inputs_still, standing_still, still_at_end, still_at_start
 from .accelerations import accelerations
 from .projection import project, settle_rows
 
@@ -138,12 +138,12 @@ def one_step(m, act, s, y, table, integrator, j, h):
 
 
 @entry
-def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after):
+def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after, carry):
     """Advance y by `steps` steps of h (module docstring); `entering` an epoch, first the held rows onto their
     manifold (a row that switched on with its points together but moving apart is held from this instant). A step
     after which the collision stage must look ends the call before its frame is recorded (status CONTACT). After
     `rest_after` steps in a row at rest (core/rest.py; 0: never) the steps leave the state as it is while the
-    inputs stay constant."""
+    inputs stay constant; `carry`: the active rows are those of the last call, whose count of such steps goes on."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     s.counters[COUNTER_KEPT] = 0  # (a factor in Lx from an earlier call may be of other rows)
     if entering:
@@ -152,7 +152,7 @@ def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, e
     while f < len(frame_step) and frame_step[f] == 0:
         record(m, act, s, y, table, 0, frames, f)
         f += 1
-    still = 0  # steps in a row, with constant inputs, that left every body at rest
+    still = still_at_start(s, y, carry and not entering)  # steps in a row, inputs constant, every body at rest
     for step in range(steps):
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
@@ -166,5 +166,7 @@ def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, e
             add_impulses(act, m.constraints, s.lam, act.local, h, s.impulse)
         taken, f = after_step(m, act, s, y, table, GRID * (step + 1), step, frame_step, frames, f, status)
         if taken >= 0:
+            still_at_end(s, y, still)
             return taken
+    still_at_end(s, y, still)
     return steps

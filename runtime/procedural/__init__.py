@@ -36,16 +36,18 @@ class ProceduralStepper:
         self.iterations = int(options.iterations)
         self.projection = getattr(options, "projection", "auto")
         self._epochs: dict = {}  # id(Active) -> (Active, Sweep, Curves)
+        self.last_rows = None  # the Active rows of the last run (its count of steps at rest goes on with them)
         self._run = Bound(run)
 
     def run(self, act, y, t0: float, h: float, steps: int, frame_step, frames, status) -> int:
         c = self.compiled
         table = c.tabulate(t0, h, steps, self.grid)
         _, sw, curves = self._epoch(act)
+        carry, self.last_rows = self.last_rows is act, act
         all_at_once = self.projection == "direct" or (self.projection == "auto" and (
             len(act.rows) <= DIRECT_MAX_ROWS or bool(len(act.rows)) and act.rows.max() >= c.joint_rows))
         return self._run(c.model, act, sw, curves, c.scratch, y, table, h, steps, self.grid, self.iterations,
-                         all_at_once, frame_step, frames, status, self.rest_after)
+                         all_at_once, frame_step, frames, status, self.rest_after, carry)
 
     def enter(self, act, y, t: float) -> None:
         """A new epoch at t: the sweep order of its instances, and the curves of its rows still assembling

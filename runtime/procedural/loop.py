@@ -18,7 +18,7 @@ from ..core.data import COUNTER_RESTING, COUNTER_TURNED_BACK
 from ..core.forces import add_loads, add_springs, weights
 from ..core.jit import entry, kernel
 from ..core.record import DONE, after_step, record
-from ..core.rest import inputs_still, standing_still
+from ..core.rest import inputs_still, standing_still, still_at_end, still_at_start
 from ..core.rows import apply_drivers
 from ..core.timetable import TIME
 from ..wind.kernels import wind_relax
@@ -81,14 +81,14 @@ def procedural_step(m, act, sw, curves, s, y, table, j, h, substeps, iterations,
 
 @entry
 def run(m, act, sw, curves, s, y, table, h, steps, substeps, iterations, all_at_once, frame_step, frames, status,
-        rest_after):
+        rest_after, carry):
     """Advance y by `steps` steps of h (as dynamics/integrate.run, with the procedural step; at rest as there)."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
         record(m, act, s, y, table, 0, frames, f)
         f += 1
-    still = 0  # steps in a row, with constant inputs, that left every body at rest
+    still = still_at_start(s, y, carry)  # steps in a row, inputs constant, every body at rest
     for step in range(steps):
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
@@ -103,5 +103,7 @@ def run(m, act, sw, curves, s, y, table, h, steps, substeps, iterations, all_at_
             still = still + 1 if steady and standing_still(m, act, y, s.start, h) else 0
         taken, f = after_step(m, act, s, y, table, substeps * (step + 1), step, frame_step, frames, f, status)
         if taken >= 0:
+            still_at_end(s, y, still)
             return taken
+    still_at_end(s, y, still)
     return steps

@@ -3,6 +3,7 @@ loops stop integrating, and the run is the one that integrating every step gives
 that moves, or an input that changes, integrates as before."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -42,11 +43,14 @@ def resting(sim) -> int:
     return int(sim.compiled.scratch.counters[COUNTER_RESTING])
 
 
-def run(monkeypatch, rest: bool, path=None, text=None, **options):
+def run(monkeypatch, rest: bool, path=None, text=None, frames=False, **options):
+    """The scene run to its end, in one advance or (`frames`) one frame at a time (a call of the loop each, as the
+    audio stage and the live mode step)."""
     for stepper in (DynamicsStepper, ProceduralStepper):
         monkeypatch.setattr(stepper, "rest_after", REST_STEPS if rest else 0)
     sim = Simulation.from_file(path, **options) if path is not None else Simulation.from_text(text, **options)
-    sim.advance_to(sim.plan.end)
+    for t in (sim.plan.frame_times[1:] if frames else [sim.plan.end]):
+        sim.advance_to(float(t))
     monkeypatch.undo()
     return sim
 
@@ -92,3 +96,31 @@ def test_a_scene_in_the_wind_is_never_left_at_rest():
     sim = Simulation.from_file(SCENES / "mobile.isaac", until=1.0)
     sim.advance_to(1.0)
     assert resting(sim) == 0
+
+
+# a ball held still above a table by a constraint until 0.5 s, run a frame (a call of the loop) at a time, as the
+# audio stage steps a scene with sound: rest is carried from call to call; the release must drop it on time
+RELEASED = """scene released {
+  time 0 s .. 1 s
+  frames 100 Hz
+  gravity (0, -9.81, 0) m/s2
+  solver %s
+  material felt { friction 0.5  restitution 0 }
+  body table static box { size (1, 0.1, 1)  at (0, -0.05, 0)  material felt }
+  body ball sphere { radius 5 cm  mass 0.2 kg  at (0, 30 cm, 0)  material felt }
+  constraint hold point(ball @ (0, 0, 0), table @ (0, 0.35, 0)) until 0.5 s
+}"""
+
+
+@pytest.mark.parametrize("solver", ["dynamics { integrator rk4  step 1 ms }", "procedural { step 1 ms }"])
+def test_rest_is_carried_from_call_to_call_and_a_release_drops_the_ball_on_time(monkeypatch, solver):
+    text = RELEASED % solver
+    at_rest = run(monkeypatch, True, text=text, frames=True)
+    stepped = run(monkeypatch, False, text=text, frames=True)
+    # held still until 0.5 s: nearly every step of it at rest, though each call is a frame of 10 steps
+    assert 500 - 3 * REST_STEPS <= resting(at_rest) <= 1000
+    impact = [e["time"] for e in at_rest.events if e["kind"] == "impact"]
+    # released at 0.5 s from 25 cm above the table: it lands sqrt(2 0.25 / g) later
+    assert impact and impact[0] == pytest.approx(0.5 + math.sqrt(2 * 0.25 / G), abs=2e-3)
+    assert impact[0] == pytest.approx([e["time"] for e in stepped.events if e["kind"] == "impact"][0], abs=1e-9)
+    assert np.abs(at_rest.state.x - stepped.state.x).max() <= 1e-9
