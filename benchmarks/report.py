@@ -224,7 +224,8 @@ def specialization_table(rows: list, imports: list) -> str:
                  f"({int(c['modules'])} modules; own import time by package: {packages}). "
                  f"Optional modules imported: {', '.join(flagged) or 'none'}.\n")
         if "live_mobile_s" in c:
-            text += (f"\nWhole processes, cached core: `isaac run scenes/pendulum.isaac` {g(c['run_pendulum_s'], 3)} s; "
+            text += (f"\nWhole processes, cached core: `isaac run scenes/pendulum.isaac` "
+                     f"{g(c['run_pendulum_s'], 3)} s; "
                      f"`isaac live scenes/mobile.isaac --mic scenes/assets/breath.wav --until {g(c['live_until_s'])}` "
                      f"{g(c['live_mobile_s'], 3)} s, of which {g(c['live_until_s'])} s paced to the clock.\n")
     return text

@@ -199,7 +199,8 @@ def run(quick: bool = False, out: Path | None = None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         command, top = command_imports(Path(tmp))
     common.log(f"  command: {command['wall_s']:.2f} s wall (python alone {command['python_startup_s']:.2f} s; "
-               f"pendulum run {command['run_pendulum_s']:.2f} s, {LIVE_UNTIL:g} s live {command['live_mobile_s']:.2f} s), "
+               f"pendulum run {command['run_pendulum_s']:.2f} s, {LIVE_UNTIL:g} s live "
+               f"{command['live_mobile_s']:.2f} s), "
                f"imports {command['imports_s']:.2f} s; optional imported: "
                f"{[k[8:] for k, v in command.items() if k.startswith('imports ') and v]}")
     result = {"variants": rows, "command": command, "top_imports": top}

@@ -6,12 +6,13 @@ RK4 (classic Runge-Kutta), MIDPOINT (explicit RK2) and EULER (semi-implicit: vel
 with the new velocities, the orientation turned exactly by w h). Quaternions are renormalized at every stage.
 After each step: kinematic bodies exactly on their paths, the projection of the held rows (projection.py),
 rows that finished assembling join them, and a check for a blow-up (a non-finite state, or a speed beyond
-RUNAWAY_SPEED). A scene at rest stops being integrated while its inputs stay constant (core/rest.py). The time table has 2 rows per step (t, t + h/2, t + h at rows 2i, 2i+1, 2i+2).
+RUNAWAY_SPEED). A scene at rest stops being integrated while its inputs stay constant (core/rest.py). The time
+table has 2 rows per step (t, t + h/2, t + h at rows 2i, 2i+1, 2i+2).
 
-`run(m, act, s, y, table, integrator, t0, h, steps, frame_step, frames, status, entering, rest_after, carry)` advances y by `steps` steps of h
-from t0 (step i at t0 + i h, no accumulated sum); after step frame_step[f] (0: before the first) it records frame
-f: frames.y[f] the state, frames.energy[f], frames.error[f] the largest |C| of the active rows and
-frames.worst[f] that row. status (4,) <- (code, step, body or row or contact, detail): code 0 done,
+`run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after, carry)` advances
+y by `steps` steps of h from t0 (step i at t0 + i h, no accumulated sum); after step frame_step[f] (0: before the
+first) it records frame f: frames.y[f] the state, frames.energy[f], frames.error[f] the largest |C| of the active
+rows and frames.worst[f] that row. status (4,) <- (code, step, body or row or contact, detail): code 0 done,
 RUNAWAY_BODY, RUNAWAY_ROW, CONTACT (core/record.py after_step; CONTACT: the collision stage must look, detail the change,
 core/contact.py). s.start holds the state at the start of the last step. Returns the steps taken.
 """
