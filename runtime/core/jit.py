@@ -31,6 +31,8 @@ from pathlib import Path
 
 from isaac_lang.imports import lazily, without
 
+from ..outputs import write_atomic
+
 # numba imports scipy, when it is installed, only to refuse a scipy older than 1.0 (pyproject asks for newer):
 # 20 to 30 ms of every run's start (the stages that need scipy import what they use of it); and yaml, to read a
 # .numba_config.yaml in the working folder, when there is one (10 ms). It imports importlib.metadata for the entry
@@ -179,9 +181,7 @@ def _defined_names(bitcode: bytes) -> set | None:
     except Exception:  # noqa: BLE001
         return None
     try:  # written whole or not at all (another process may read it meanwhile)
-        partial = listed.with_suffix(f".{os.getpid()}.part")
-        partial.write_text("\n".join(sorted(names)) + "\n", encoding="utf-8")
-        os.replace(partial, listed)
+        write_atomic(listed, ("\n".join(sorted(names)) + "\n").encode("utf-8"))
     except OSError:
         pass  # a read-only install: parsed at every start, as numba does
     return names

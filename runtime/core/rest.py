@@ -25,7 +25,7 @@ exactly upright) stays standing, as it would in exact arithmetic; one perturbed 
 """
 from __future__ import annotations
 
-from .data import COUNTER_STILL
+from .data import COUNTER_RESTING, COUNTER_STILL
 from .jit import inlined
 from .timetable import TIME
 
@@ -38,19 +38,36 @@ REST_STEPS = 10
 
 
 @inlined
+def rests(s, table, j, rows, rest_after, still):
+    """Whether the step from grid row j (`rows` rows of the time table) is one at rest: `rest_after` steps in a
+    row, `still`, have found the scene at rest, and its inputs are still constant. Counted."""
+    if 0 < rest_after <= still and inputs_still(table, j, rows):
+        s.counters[COUNTER_RESTING] += 1
+        return True
+    return False
+
+
+@inlined
+def still_after(m, act, s, y, table, j, rows, h, still):
+    """The count of steps in a row at rest after an integrated step of h from grid row j (from s.start to y):
+    one more when it left the scene at rest with constant inputs, else 0."""
+    return still + 1 if standing_still(m, act, y, s.start, h) and inputs_still(table, j, rows) else 0
+
+
+@inlined
 def standing_still(m, act, y, start, h):
     """Whether the step of h from `start` to `y` left every body at rest (module docstring), with every active row
-    held and no wind."""
-    if len(m.wind.body):
-        return False
-    for i in range(len(act.rows)):
-        if not act.held[i]:
-            return False
+    held and no wind. (The bodies first: a moving scene fails at its first moving body.)"""
     change = REST_ACCELERATION * h
     for b in range(len(y) - 1):  # (every body: a static one declared with a velocity drifts with it)
         for c in range(7, 13):
             if not (abs(y[b, c]) <= REST_SPEED and abs(y[b, c] - start[b, c]) <= change):
                 return False
+    if len(m.wind.body):
+        return False
+    for i in range(len(act.rows)):
+        if not act.held[i]:
+            return False
     return True
 
 

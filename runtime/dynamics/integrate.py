@@ -22,10 +22,10 @@ import math
 
 from ..core.bodies import copy_state, normalize_quaternions, place_kinematic
 from ..core.contact import add_impulses
-from ..core.data import COUNTER_KEPT, COUNTER_RESTING, COUNTER_TURNED_BACK
+from ..core.data import COUNTER_KEPT, COUNTER_TURNED_BACK
 from ..core.jit import entry, inlined, kernel
 from ..core.record import DONE, after_step, record
-from ..core.rest import inputs_still, standing_still, still_at_end, still_at_start
+from ..core.rest import rests, still_after, still_at_end, still_at_start
 from .accelerations import accelerations
 from .projection import project, settle_rows
 
@@ -154,20 +154,18 @@ def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, e
         record(m, act, s, y, table, 0, frames, f)
         f += 1
     still = still_at_start(s, y, carry and not entering)  # steps in a row, inputs constant, every body at rest
+    done = steps
     for step in range(steps):
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
-        steady = inputs_still(table, GRID * step, GRID)
-        if steady and 0 < rest_after <= still:
-            s.counters[COUNTER_RESTING] += 1
-        else:
+        if not rests(s, table, GRID * step, GRID, rest_after, still):
             one_step(m, act, s, y, table, integrator, GRID * step, h)
-            still = still + 1 if steady and standing_still(m, act, y, s.start, h) else 0
+            still = still_after(m, act, s, y, table, GRID * step, GRID, h, still)
         if len(m.pairs.a):
             add_impulses(act, m.constraints, s.lam, act.local, h, s.impulse)
         taken, f = after_step(m, act, s, y, table, GRID * (step + 1), step, frame_step, frames, f, status)
         if taken >= 0:
-            still_at_end(s, y, still)
-            return taken
+            done = taken
+            break
     still_at_end(s, y, still)
-    return steps
+    return done

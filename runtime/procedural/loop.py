@@ -14,11 +14,11 @@ import math
 
 from ..core.bodies import copy_state, place_kinematic, rotations
 from ..core.contact import add_impulses, friction_impulses
-from ..core.data import COUNTER_RESTING, COUNTER_TURNED_BACK
+from ..core.data import COUNTER_TURNED_BACK
 from ..core.forces import add_loads, add_springs, weights
 from ..core.jit import entry, kernel
 from ..core.record import DONE, after_step, record
-from ..core.rest import inputs_still, standing_still, still_at_end, still_at_start
+from ..core.rest import rests, still_after, still_at_end, still_at_start
 from ..core.rows import apply_drivers
 from ..core.timetable import TIME
 from ..wind.kernels import wind_relax
@@ -89,21 +89,21 @@ def run(m, act, sw, curves, s, y, table, h, steps, substeps, iterations, all_at_
         record(m, act, s, y, table, 0, frames, f)
         f += 1
     still = still_at_start(s, y, carry)  # steps in a row, inputs constant, every body at rest
+    done = steps
     for step in range(steps):
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
-        steady = inputs_still(table, substeps * step, substeps)
-        if steady and 0 < rest_after <= still:
-            s.counters[COUNTER_RESTING] += 1
+        j = substeps * step
+        if rests(s, table, j, substeps, rest_after, still):
             if len(act.rows) and len(m.pairs.a):
                 # the contacts' impulses of the step's substeps, as its forces (s.lam) gave them: lambda h
                 add_impulses(act, m.constraints, s.lam, act.local, h, s.impulse)
         else:
-            procedural_step(m, act, sw, curves, s, y, table, substeps * step, h, substeps, iterations, all_at_once)
-            still = still + 1 if steady and standing_still(m, act, y, s.start, h) else 0
-        taken, f = after_step(m, act, s, y, table, substeps * (step + 1), step, frame_step, frames, f, status)
+            procedural_step(m, act, sw, curves, s, y, table, j, h, substeps, iterations, all_at_once)
+            still = still_after(m, act, s, y, table, j, substeps, h, still)
+        taken, f = after_step(m, act, s, y, table, j + substeps, step, frame_step, frames, f, status)
         if taken >= 0:
-            still_at_end(s, y, still)
-            return taken
+            done = taken
+            break
     still_at_end(s, y, still)
-    return steps
+    return done
