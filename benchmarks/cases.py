@@ -62,13 +62,13 @@ class Case:
 
 @functools.lru_cache(maxsize=None)
 def physics(case: Case) -> Physics:
-    from isaac_runtime.run import _energy_scale
+    from isaac_runtime.plan import energy_scale
 
     from .common import plan_for
 
     plan = plan_for(case.load(), "dynamics")
     return Physics(tuple(plan.names), plan.mass.copy(), plan.inertia_body.copy(), plan.dynamic.copy(),
-                   plan.x0.copy(), _energy_scale(plan))
+                   plan.x0.copy(), energy_scale(plan))
 
 
 # -- exact answers ---------------------------------------------------------------------------------------------

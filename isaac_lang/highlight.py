@@ -26,7 +26,7 @@ PROPERTIES = ("air", "area", "at", "audio", "channels", "collide", "color", "com
               "linear", "listener", "look", "loss", "mass", "material", "modes", "normal", "orient", "play",
               "poisson", "projection", "radius", "rate", "rayleigh", "rest", "restitution", "roughness", "scale",
               "seed", "size", "speed", "spin", "spread", "stabilization", "stabilize", "step", "stiffness",
-              "substeps", "texture", "time", "to", "torque", "toward", "turbulence", "up", "velocity", "wind",
+              "substeps", "texture", "time", "to", "tolerance", "torque", "toward", "turbulence", "up", "velocity", "wind",
               "young")
 CONSTANTS = ("pi", "e", "tau", "t")
 # grammar/isaac.lark's UNIT, without its trailing look-ahead (added where it is used)

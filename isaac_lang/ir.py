@@ -44,6 +44,9 @@ class SolverOptions:
     # dynamics plan: held rows projected back after each step (projection), or Baumgarte on every row for the
     # whole run (baumgarte: the dissertation's formulation)
     stabilization: str = "projection"
+    # dynamics plan, rk4: the largest local error of a step (its velocities in the kinetic-energy norm, relative to
+    # the scene's energy scale) before the step is taken again in substeps; 0: every step as it is
+    tolerance: float = 3e-6
 
 
 @dataclass(frozen=True)

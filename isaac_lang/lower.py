@@ -33,7 +33,8 @@ SOLVER_PROPS = {"integrator": "rk4 | euler | midpoint", "step": "time step", "st
                 "damping": "damping ratio", "linear": "auto | dense | sparse | tree", "substeps": "procedural",
                 "iterations": "procedural", "compliance": "procedural softness, m/N",
                 "projection": "procedural: auto | direct | gauss_seidel",
-                "stabilization": "dynamics: projection | baumgarte"}
+                "stabilization": "dynamics: projection | baumgarte",
+                "tolerance": "dynamics, rk4: local error of a step before it is taken again in substeps (0: off)"}
 CAMERA_PROPS = {"at": "position", "look": "point looked at", "up": "up direction", "fov": "vertical field of view"}
 LIGHT_PROPS = {"from": "where a distant light comes from", "at": "position", "to": "where it points",
                "intensity": "brightness", "color": "(r, g, b)"}
@@ -205,7 +206,16 @@ class SceneLowerer:
             compliance=props.scalar("compliance", U.DIMENSIONLESS, 0.0),
             projection=props.word("projection", ("auto", "direct", "gauss_seidel"), "auto"),
             stabilization=props.word("stabilization", ("projection", "baumgarte"), "projection"),
+            tolerance=self._tolerance(props),
         )
+
+    @staticmethod
+    def _tolerance(props) -> float:
+        tolerance = props.scalar("tolerance", U.DIMENSIONLESS, ir.SolverOptions.tolerance)
+        if not 0.0 <= tolerance < math.inf:
+            raise props.lowerer.fail("the tolerance must be a number of at least 0", props.node("tolerance"),
+                                     "e.g. `tolerance 1e-9`; 0 takes every step as it is")
+        return tolerance
 
     # -- things -------------------------------------------------------------------------------------------
 

@@ -199,3 +199,20 @@ def _body_arrays(scene: ir.Scene) -> dict:
             "inv_inertia_body": inv_inertia, "dynamic": dynamic, "x0": x0, "q0": q0,
             "v0": np.array([b.velocity for b in scene.bodies], float).reshape(n, 3),
             "w0": np.array([b.angular_velocity for b in scene.bodies], float).reshape(n, 3)}
+
+
+def energy_scale(plan: Plan) -> float:
+    """A yardstick for energy drift: m |g| (size of the scene) summed over dynamic bodies, or the kinetic
+    energy at the start, whichever is larger (a scene that starts at rest at zero height has E0 = 0)."""
+    with np.errstate(over="ignore", invalid="ignore"):  # (a hostile scene's speeds: an infinite scale)
+        return _energy_scale(plan)
+
+
+def _energy_scale(plan: Plan) -> float:
+    d = plan.dynamic
+    extent = float(np.ptp(plan.x0[d], axis=0).max()) if d.sum() > 1 else 1.0
+    g = float(np.linalg.norm(plan.gravity))
+    potential = float(np.sum(plan.mass[d]) * g * max(extent, 1e-3))
+    kinetic = 0.5 * float(np.sum(plan.mass[d] * np.sum(plan.v0[d] ** 2, axis=1)))
+    rotational = 0.5 * float(np.einsum("ni,nij,nj->", plan.w0[d], plan.inertia_body[d], plan.w0[d]))
+    return max(potential, kinetic + rotational, 1e-12)

@@ -25,7 +25,7 @@ from . import checks
 from .extras import check_extras
 from .outputs import Recorder, write_json, write_npz
 from .outputset import OutputSet
-from .plan import PlanOptions, compile_plan
+from .plan import PlanOptions, compile_plan, energy_scale
 from .simulation import NumericalError, Simulation
 
 EXIT_OK, EXIT_SCENE, EXIT_TOLERANCE = 0, 2, 3
@@ -241,14 +241,16 @@ def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, er
     plan = sim.plan
     arrays = recorder.arrays()
     energy = arrays["energy"]
-    scale = _energy_scale(plan)
+    scale = energy_scale(plan)
     warnings = list(plan.warnings)
     if sim.rank_deficient():
         warnings.append(checks.redundant_warning(plan, sim.constraint_residuals()[1]))
+    control = sim.error_control() if plan.solver == "dynamics" else {}
     stages = plan.stages()
     return {
         "scene": plan.scene.name, "solver": plan.solver, "integrator": plan.integrator, "step": plan.step,
         "step_reason": plan.step_reason, "steps": sim.state.steps, "steps_at_rest": sim.steps_at_rest(),
+        "tolerance": plan.scene.solver.tolerance if plan.integrator == "rk4" else None, **control,
         "simulated_time": sim.state.t - plan.start,
         "wall_time": wall, "frames": int(len(arrays["time"])),
         "stages_run": [k for k, v in stages.items() if v], "stages_skipped": [k for k, v in stages.items() if not v],
@@ -270,18 +272,6 @@ def _settled(plan, arrays: dict) -> dict:
     value, at = checks.settled_error(arrays["time"], arrays["constraint_error"], windows)
     return {"constraint_error_settled": value, "constraint_error_settled_time": at,
             "settling_windows": [list(w) for w in windows]}
-
-
-def _energy_scale(plan) -> float:
-    """A yardstick for energy drift: m |g| (size of the scene) summed over dynamic bodies, or the kinetic
-    energy at the start, whichever is larger (a scene that starts at rest at zero height has E0 = 0)."""
-    d = plan.dynamic
-    extent = float(np.ptp(plan.x0[d], axis=0).max()) if d.sum() > 1 else 1.0
-    g = float(np.linalg.norm(plan.gravity))
-    potential = float(np.sum(plan.mass[d]) * g * max(extent, 1e-3))
-    kinetic = 0.5 * float(np.sum(plan.mass[d] * np.sum(plan.v0[d] ** 2, axis=1)))
-    rotational = 0.5 * float(np.einsum("ni,nij,nj->", plan.w0[d], plan.inertia_body[d], plan.w0[d]))
-    return max(potential, kinetic + rotational, 1e-12)
 
 
 class _NoBar:

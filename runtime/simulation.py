@@ -173,6 +173,13 @@ class Simulation:
         """Steps that found the scene at rest and left its state as it was (core/rest.py)."""
         return int(self.compiled.scratch.counters[D.COUNTER_RESTING])
 
+    def error_control(self) -> dict:
+        """RK4's error control so far (dynamics/integrate.py): steps taken again in substeps, the substeps they
+        took, and steps whose estimated error stayed above the tolerance."""
+        c = self.compiled.scratch.counters
+        return {"steps_refined": int(c[D.COUNTER_REFINED]), "substeps": int(c[D.COUNTER_SUBSTEPS]),
+                "steps_over_tolerance": int(c[D.COUNTER_OVER])}
+
     def constraint_residuals(self) -> tuple:
         """({global row: |C|} of the active position rows, [rows the last solve dropped as dependent]) at the
         current state (runtime/checks.py names the constraints that cannot all hold from them)."""

@@ -34,7 +34,7 @@ VARYING = ["wall_time", "variant_wall_time", "outputs"]
 UNSTABLE = """let stabilization = 2 Hz
 scene unstable {
   time 0 s .. 1 s
-  solver dynamics { step 20 ms  stabilize stabilization }
+  solver dynamics { step 20 ms  stabilize stabilization  tolerance 0 }
   body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) }
   constraint hang nail(bob @ (-0.9, 0, 0), (0, 0, 0))
 }

@@ -14,11 +14,11 @@ import numpy as np
 
 X, Q, V, W = slice(0, 3), slice(3, 7), slice(7, 10), slice(10, 13)
 PACKED = 13
-STAGES = 4  # slopes kept by the integrators (RK4's four)
+STAGES = 5  # slopes kept by the integrators: RK4's four, and the slope at the end of a step (dynamics/integrate.py)
 
 Scratch = namedtuple("Scratch", "R inv_inertia force torque acc param C J ct bias MJ Jd rhs lam dlam diag work dropped "
                                 "include Lx target correction delta k y0 ys start R0 friction impulse air block "
-                                "rested counters")
+                                "rested lam_step counters")
 # the buffers of one small block (an instance's rows, at most 3) of the procedural projection
 Block = namedtuple("Block", "K rhs x J D dx")
 # counters: [0] evaluations whose solve dropped a dependent row, [1] projections done, [2] 1 + the first sliding
@@ -27,12 +27,17 @@ Block = namedtuple("Block", "K rhs x J D dx")
 # J M^-1 J^T (0: it does not, or it was never made), [4] how many rows that factorization dropped, [5] evaluations
 # still to factor afresh before the kept factor is tried again, [6] the length of the last such wait, [7]
 # evaluations that the kept factor served; [8] steps taken at rest, the state left as it was (core/rest.py), [9]
-# the steps in a row at rest when the last call ended, in the state `rested` (the state it ended with)
+# the steps in a row at rest when the last call ended, in the state `rested` (the state it ended with); the error
+# control of RK4 (dynamics/integrate.py): [10] steps taken again in substeps, [11] the substeps they took, [12] steps
+# whose estimated error stayed above the tolerance (time-varying inputs, or the most substeps not enough)
 COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_TURNED_BACK = 0, 1, 2
 COUNTER_KEPT, COUNTER_KEPT_DROPPED, COUNTER_WAIT, COUNTER_BACKOFF, COUNTER_REUSED = 3, 4, 5, 6, 7
 COUNTER_RESTING, COUNTER_STILL = 8, 9
+COUNTER_REFINED, COUNTER_SUBSTEPS, COUNTER_OVER = 10, 11, 12
+COUNTERS = 13
 # the counts of a whole run, kept when the buffers grow (core/build.py reserve_contacts)
-CUMULATIVE_COUNTERS = (COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_REUSED, COUNTER_RESTING)
+CUMULATIVE_COUNTERS = (COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_REUSED, COUNTER_RESTING, COUNTER_REFINED,
+                       COUNTER_SUBSTEPS, COUNTER_OVER)
 
 
 def initial_state(plan) -> np.ndarray:
@@ -62,4 +67,4 @@ def allocate_scratch(n: int, param: np.ndarray, rows: int, fill: int = 1) -> Scr
         impulse=np.zeros(max(len(param), 1)), air=np.zeros((b, 4)),
         block=Block(np.zeros((3, 3)), np.zeros(3), np.zeros(3), np.zeros((3, 2, 6)), np.zeros((3, 2, 6)),
                     np.zeros(6)),
-        rested=np.zeros((b, PACKED)), counters=np.zeros(10, np.int64))
+        rested=np.zeros((b, PACKED)), lam_step=np.zeros(m), counters=np.zeros(COUNTERS, np.int64))

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.jit import Bound
+from ..plan import energy_scale
 from ..core.rest import REST_STEPS
 from .integrate import GRID, INTEGRATORS, run
 
@@ -24,6 +25,8 @@ class DynamicsStepper:
     def __init__(self, compiled, plan):
         self.compiled = compiled
         self.integrator = INTEGRATORS[plan.integrator]
+        self.tolerance = plan.scene.solver.tolerance  # RK4's error control (integrate.py; 0: off)
+        self.energy_scale = energy_scale(plan)
         self.entering = None  # the Active rows of an epoch just entered, until its first run
         self.last_rows = None  # the Active rows of the last run (its count of steps at rest goes on with them)
         self._run = Bound(run)
@@ -35,7 +38,7 @@ class DynamicsStepper:
         entering, self.entering = self.entering is act, None
         carry, self.last_rows = self.last_rows is act, act
         return self._run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status,
-                         entering, self.rest_after, carry)
+                         entering, self.rest_after, carry, self.tolerance, self.energy_scale)
 
     def enter(self, act, y, t: float) -> None:
         """A new epoch begins at t: its first run starts by putting the held rows on their manifold."""

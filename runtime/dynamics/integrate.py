@@ -9,12 +9,27 @@ rows that finished assembling join them, and a check for a blow-up (a non-finite
 RUNAWAY_SPEED). A scene at rest stops being integrated while its inputs stay constant (core/rest.py). The time
 table has 2 rows per step (t, t + h/2, t + h at rows 2i, 2i+1, 2i+2).
 
-`run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after, carry)` advances
-y by `steps` steps of h from t0 (step i at t0 + i h, no accumulated sum); after step frame_step[f] (0: before the
-first) it records frame f: frames.y[f] the state, frames.energy[f], frames.error[f] the largest |C| of the active
-rows and frames.worst[f] that row. status (4,) <- (code, step, body or row or contact, detail): code 0 done,
-RUNAWAY_BODY, RUNAWAY_ROW, CONTACT (core/record.py after_step; CONTACT: the collision stage must look, detail the change,
-core/contact.py). s.start holds the state at the start of the last step. Returns the steps taken.
+Error control (RK4, `tolerance` > 0). The slope at the end of a step, k5 = f(y1), which the next step needs as its
+first, gives an embedded third-order solution for free (the nodes 0, 1/2, 1/2, 1, 1; weights 1/6, 2/9, 4/9, 0, 1/6
+meet the four conditions of order 3), so the local error of the step is estimated by
+
+    e = y1 - y1* = h (k2 / 9 - k3 / 9 + (k4 - k5) / 6)
+
+measured on the velocities in the kinetic-energy norm, relative to the larger of the scene's energy scale (the
+yardstick of report.json's energy drift) and its kinetic energy E:  err = sqrt(sum m |e_v|^2 + e_w . I e_w) / sqrt(2 E). A step whose err passes the
+tolerance is taken again from its start in N = 2, 4, .. MAX_SUBSTEPS substeps, N^3 >= err / tolerance (the
+estimate is O(h^4) a step, N substeps add N (h/N)^4); a step of smooth motion is never taken again, and its
+result is the plain RK4 step's. Substeps read the time table's row of the step's start, so they are taken only
+while the inputs are constant over the step (core/rest.py inputs_still) and no wind blows; a step over the
+tolerance that cannot be refined is counted (report.json `steps_over_tolerance`).
+
+`run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after, carry,
+tolerance, energy_scale)` advances y by `steps` steps of h from t0 (step i at t0 + i h, no accumulated sum); after
+step frame_step[f] (0: before the first) it records frame f: frames.y[f] the state, frames.energy[f],
+frames.error[f] the largest |C| of the active rows and frames.worst[f] that row. status (4,) <- (code, step, body or
+row or contact, detail): code 0 done, RUNAWAY_BODY, RUNAWAY_ROW, CONTACT (core/record.py after_step; CONTACT: the
+collision stage must look, detail the change, core/contact.py). s.start holds the state at the start of the last
+step. Returns the steps taken.
 """
 from __future__ import annotations
 
@@ -22,16 +37,19 @@ import math
 
 from ..core.bodies import copy_state, normalize_quaternions, place_kinematic
 from ..core.contact import add_impulses
-from ..core.data import COUNTER_KEPT, COUNTER_TURNED_BACK
+from ..core.data import COUNTER_KEPT, COUNTER_OVER, COUNTER_REFINED, COUNTER_SUBSTEPS, COUNTER_TURNED_BACK
 from ..core.jit import entry, inlined, kernel
 from ..core.record import DONE, after_step, record
-from ..core.rest import rests, still_after, still_at_end, still_at_start
+from ..core.rest import inputs_still, rests, still_after, still_at_end, still_at_start
+from ..core.vec import dot3, rotate, rotate_t
 from .accelerations import accelerations
 from .projection import project, settle_rows
 
 RK4, MIDPOINT, EULER = 0, 1, 2
 INTEGRATORS = {"rk4": RK4, "midpoint": MIDPOINT, "euler": EULER}
 GRID = 2  # time-table rows per step
+END = 4  # s.k[END]: the slope at the end of the last step, the next step's first (error control)
+MAX_SUBSTEPS = 16  # the most substeps a step over the tolerance is taken again in
 
 @inlined
 def _slope(m, act, s, y, table, j, k):
@@ -72,23 +90,6 @@ def _scheme(integrator, i):
     return 0.0, 1.0
 
 
-@inlined
-def _slopes(m, act, s, y, table, j, h, integrator):
-    """The scheme's slopes k_i at y0 + c_i h k_{i-1} (time t + c_i h: grid row j + 2 c_i), into s.k; s.y0 <- y
-    with the kinematic bodies at t. One call site for the slope, in a loop, so that the right-hand side is compiled
-    once for every scheme and stage."""
-    stages = 4 if integrator == RK4 else 2 if integrator == MIDPOINT else 1
-    copy_state(y, s.ys)
-    for i in range(stages):
-        c, _ = _scheme(integrator, i)
-        if i > 0:
-            _stage(s.y0, s.k[i - 1], c * h, s.ys)
-        _slope(m, act, s, s.ys, table, j + int(GRID * c), s.k[i])
-        if i == 0:
-            copy_state(s.ys, s.y0)  # after the first slope: it placed the kinematic bodies at t
-    return stages
-
-
 @kernel
 def _runge_kutta(s, y, h, integrator, stages):
     """y <- y0 + h sum_i b_i k_i, quaternions renormalized."""
@@ -126,25 +127,131 @@ def _semi_implicit_euler(s, y, h):
 
 
 @inlined
-def one_step(m, act, s, y, table, integrator, j, h):
-    """One step of h from grid row j, then the kinematic bodies on their paths and the projection."""
-    stages = _slopes(m, act, s, y, table, j, h, integrator)
+def one_step(m, act, s, y, table, integrator, j, h, stride, known, end):
+    """One step of h from grid row j whose end is row j + stride (GRID; 0 for a substep of a step with constant
+    inputs): the scheme's slopes k_i at y0 + c_i h k_{i-1} (time t + c_i h: grid row j + stride c_i) into s.k, y
+    their sum, the kinematic bodies on their paths and the projection; with `end`, then s.k[END] the slope at the
+    result (the multipliers and the turned-back count left those of the step: its impulses and contact checks read
+    them). `known`: the first slope is s.k[END], the last step's end slope at this very state (y's kinematic bodies
+    already at t). s.y0 <- y with the kinematic bodies at t. One call site for the slope, in one loop, so that the
+    right-hand side is compiled once for every scheme, stage and end slope."""
+    stages = 4 if integrator == RK4 else 2 if integrator == MIDPOINT else 1
+    copy_state(y, s.ys)
+    turned = 0
+    for i in range(stages + 2):
+        if i == stages:
+            _finish(m, act, s, y, table, integrator, j + stride, h, stages)
+            continue
+        if i == stages + 1:
+            if not end:
+                break
+            copy_state(y, s.ys)
+            turned, row, target = _keep_multipliers(s), j + stride, END
+        else:
+            c, _ = _scheme(integrator, i)
+            if i > 0:
+                _stage(s.y0, s.k[i - 1], c * h, s.ys)
+            row, target = j + int(stride * c), i
+        if i == 0 and known:
+            copy_state(s.k[END], s.k[0])
+        else:
+            _slope(m, act, s, s.ys, table, row, s.k[target])
+        if i == 0:
+            copy_state(s.ys, s.y0)  # after the first slope: it placed the kinematic bodies at t
+    if end:
+        _restore_multipliers(s, turned)
+
+
+@inlined
+def _finish(m, act, s, y, table, integrator, j, h, stages):
+    """y <- the step's result from its slopes, the kinematic bodies at grid row j, the held rows projected."""
     if integrator == EULER:
         _semi_implicit_euler(s, y, h)
     else:
         _runge_kutta(s, y, h, integrator, stages)
-    place_kinematic(m.kinematic, table, j + GRID, y)
-    project(m, act, s, y, table, j + GRID, False)
+    place_kinematic(m.kinematic, table, j, y)
+    project(m, act, s, y, table, j, False)
     settle_rows(m, act, s, y)
 
 
+@kernel
+def _keep_multipliers(s):
+    """s.lam_step <- the step's multipliers; returns its turned-back count."""
+    for r in range(len(s.lam)):
+        s.lam_step[r] = s.lam[r]
+    return s.counters[COUNTER_TURNED_BACK]
+
+
+@kernel
+def _restore_multipliers(s, turned):
+    for r in range(len(s.lam)):
+        s.lam[r] = s.lam_step[r]
+    s.counters[COUNTER_TURNED_BACK] = turned
+
+
+@kernel
+def _embedded(k, b, c, h):
+    """Component c of body b of e = y1 - y1*, the RK4 step less its embedded third-order solution."""
+    # e = h (k2 / 9 - k3 / 9 + (k4 - k5) / 6)
+    return h * ((k[1, b, c] - k[2, b, c]) / 9.0 + (k[3, b, c] - k[END, b, c]) / 6.0)
+
+
+@kernel
+def step_error(m, s, y, h, energy_scale):
+    """The estimated local error of the RK4 step just taken to y (module docstring), s.k[1..3] its slopes and
+    s.k[END] the slope at its end (R current at y): sqrt(sum m |e_v|^2 + e_w . I e_w) / sqrt(2 E), E the larger of
+    the scene's energy scale and the kinetic energy at y."""
+    error, kinetic = 0.0, 0.0
+    k = s.k
+    for b in range(len(y) - 1):
+        if not m.bodies.dynamic[b]:
+            continue
+        ev = (_embedded(k, b, 7, h), _embedded(k, b, 8, h), _embedded(k, b, 9, h))
+        ew = (_embedded(k, b, 10, h), _embedded(k, b, 11, h), _embedded(k, b, 12, h))
+        v, w = (y[b, 7], y[b, 8], y[b, 9]), (y[b, 10], y[b, 11], y[b, 12])
+        # m |e_v|^2 + e_w . I e_w and m |v|^2 + w . I w, I = R I_b R^T
+        u, uw = rotate_t(s.R, b, ew), rotate_t(s.R, b, w)
+        error += m.bodies.mass[b] * dot3(ev, ev) + dot3(u, rotate(m.bodies.inertia, b, u))
+        kinetic += 0.5 * (m.bodies.mass[b] * dot3(v, v) + dot3(uw, rotate(m.bodies.inertia, b, uw)))
+    return math.sqrt(error / (2.0 * max(energy_scale, kinetic)))
+
+
+@kernel
+def substeps_for(error, tolerance):
+    """The fewest substeps N (a power of 2, at most MAX_SUBSTEPS) with N^3 >= error / tolerance."""
+    n = 2
+    while n < MAX_SUBSTEPS and n * n * n * tolerance < error:
+        n *= 2
+    return n
+
+
+@inlined
+def refine(m, s, y, table, j, h, tolerance, energy_scale):
+    """After an RK4 step of h from grid row j under error control (module docstring): the substeps to take it
+    again in from s.start (y back there), or 1 to keep it."""
+    error = step_error(m, s, y, h, energy_scale)
+    if not error > tolerance:
+        return 1
+    if len(m.wind.body) or not inputs_still(table, j, GRID):
+        s.counters[COUNTER_OVER] += 1
+        return 1
+    n = substeps_for(error, tolerance)
+    s.counters[COUNTER_REFINED] += 1
+    s.counters[COUNTER_SUBSTEPS] += n
+    if n * n * n * tolerance < error:
+        s.counters[COUNTER_OVER] += 1
+    return n
+
+
 @entry
-def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after, carry):
+def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after, carry,
+        tolerance, energy_scale):
     """Advance y by `steps` steps of h (module docstring); `entering` an epoch, first the held rows onto their
     manifold (a row that switched on with its points together but moving apart is held from this instant). A step
     after which the collision stage must look ends the call before its frame is recorded (status CONTACT). After
     `rest_after` steps in a row at rest (core/rest.py; 0: never) the steps leave the state as it is while the
-    inputs stay constant; `carry`: the active rows are those of the last call, whose count of such steps goes on."""
+    inputs stay constant; `carry`: the active rows are those of the last call, whose count of such steps goes on.
+    `tolerance` > 0: RK4 steps under error control, relative to `energy_scale` (module docstring)."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     s.counters[COUNTER_KEPT] = 0  # (a factor in Lx from an earlier call may be of other rows)
     if entering:
@@ -155,11 +262,25 @@ def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, e
         f += 1
     still = still_at_start(s, y, carry and not entering)  # steps in a row, inputs constant, every body at rest
     done = steps
+    controlled = integrator == RK4 and tolerance > 0.0
+    known = False  # s.k[END] holds the slope at y
     for step in range(steps):
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
-        if not rests(s, table, GRID * step, GRID, rest_after, still):
-            one_step(m, act, s, y, table, integrator, GRID * step, h)
+        if rests(s, table, GRID * step, GRID, rest_after, still):
+            known = False
+        else:
+            pieces, piece = 1, 0  # the step, or the substeps it is taken again in (one call site of the step)
+            while piece < pieces:
+                one_step(m, act, s, y, table, integrator, GRID * step, h / pieces, GRID if pieces == 1 else 0,
+                         known, controlled)
+                known, piece = controlled, piece + 1
+                if controlled and pieces == 1:
+                    pieces = refine(m, s, y, table, GRID * step, h, tolerance, energy_scale)
+                    if pieces > 1:
+                        copy_state(s.start, y)
+                        copy_state(s.k[0], s.k[END])  # (the slope at the start: the first substep's first)
+                        piece = 0
             still = still_after(m, act, s, y, table, GRID * step, GRID, h, still)
         if len(m.pairs.a):
             add_impulses(act, m.constraints, s.lam, act.local, h, s.impulse)
