@@ -150,13 +150,10 @@ class SceneLowerer:
 
     def _settings(self) -> dict:
         lowerer = self.x.settings[0][2] if self.x.settings else None
-        props = None
-        if self.x.settings:
-            scope = self.x.settings[0][1]
-            props = Props(None, SETTINGS, "the scene", lowerer, scope, items=[t for t, _, _ in self.x.settings],
-                          keywords=KEYWORDS + WINDOW_WORDS)
-        else:
-            props = _EmptyProps()
+        scope = self.x.settings[0][1] if self.x.settings else None
+        # with no settings written, every getter returns its default
+        props = Props(None, SETTINGS, "the scene", lowerer, scope, items=[t for t, _, _ in self.x.settings],
+                      keywords=KEYWORDS + WINDOW_WORDS)
         start, end = props.range("time", U.TIME) or (0.0, 10.0)
         if end <= start:
             self.reporter.error("the scene ends before it starts", lowerer.pos(props.node("time")),
@@ -182,7 +179,7 @@ class SceneLowerer:
         }
 
     def _solver(self) -> ir.SolverOptions:
-        plan, props = "auto", _EmptyProps()
+        plan, props = "auto", Props(None, SOLVER_PROPS, "the solver", None, None)  # unwritten: the defaults
         for tree, scope, lowerer in self.x.solvers[-1:]:
             plan = str(tree.children[0])
             if plan not in ("dynamics", "procedural", "auto"):
@@ -206,16 +203,9 @@ class SceneLowerer:
             compliance=props.scalar("compliance", U.DIMENSIONLESS, 0.0),
             projection=props.word("projection", ("auto", "direct", "gauss_seidel"), "auto"),
             stabilization=props.word("stabilization", ("projection", "baumgarte"), "projection"),
-            tolerance=self._tolerance(props),
+            tolerance=props.scalar("tolerance", U.DIMENSIONLESS, ir.SolverOptions.tolerance,
+                                   minimum=(0.0, "e.g. `tolerance 1e-9`; 0 takes every step as it is")),
         )
-
-    @staticmethod
-    def _tolerance(props) -> float:
-        tolerance = props.scalar("tolerance", U.DIMENSIONLESS, ir.SolverOptions.tolerance)
-        if not 0.0 <= tolerance < math.inf:
-            raise props.lowerer.fail("the tolerance must be a number of at least 0", props.node("tolerance"),
-                                     "e.g. `tolerance 1e-9`; 0 takes every step as it is")
-        return tolerance
 
     # -- things -------------------------------------------------------------------------------------------
 
@@ -536,36 +526,6 @@ class SceneLowerer:
             raise SceneError(self.reporter.diagnostics)  # already reported where it was declared
         raise lowerer.fail(f"unknown body `{name}`", node,
                            did_you_mean(name, self.bodies) or "declare it with `body NAME SHAPE { ... }`")
-
-
-class _EmptyProps:
-    """Stands in for a block that was not written: every getter returns its default."""
-
-    lowerer = None
-
-    def range(self, name, dim):
-        return None
-
-    def scalar(self, name, dim, default=None, **kw):
-        return default
-
-    def vector(self, name, dim, default=None, **kw):
-        return default
-
-    def integer(self, name, default, minimum=0):
-        return default
-
-    def word(self, name, choices, default=None):
-        return default
-
-    def boolean(self, name, default):
-        return default
-
-    def block(self, name, vocabulary, what):
-        return self
-
-    def has(self, name):
-        return False
 
 
 def _as_expr(value) -> E.Expr:

@@ -1,6 +1,8 @@
 """Reading a `{ name value ... }` block against the vocabulary of what may stand in it."""
 from __future__ import annotations
 
+import math
+
 from lark import Token, Tree
 
 from . import expr as E
@@ -59,15 +61,21 @@ class Props:
 
     # -- typed getters ------------------------------------------------------------------------------------
 
-    def scalar(self, name: str, dim, default=None, *, bare_ok=False, time=False, signals=False):
-        """A number in SI; with time=True the result may be an expression of t (else a float)."""
+    def scalar(self, name: str, dim, default=None, *, bare_ok=False, time=False, signals=False, minimum=None):
+        """A number in SI; with time=True the result may be an expression of t (else a float).
+
+        minimum: a constant must be finite and at least this (the hint says what the bound means)."""
         if name not in self.entries:
             return default
         value = self.typed(name, CONTEXTS[time, signals])
         node = self.lowerer.coerce(value, dim, f"`{name}`", self.node(name), 0, bare_ok)
         if time or signals:
             return node
-        return self._constant(node, name)
+        constant = self._constant(node, name)
+        if minimum is not None and not minimum[0] <= constant < math.inf:
+            raise self.lowerer.fail(f"`{name}` must be a number of at least {minimum[0]:g}", self.node(name),
+                                    minimum[1])
+        return constant
 
     def vector(self, name: str, dim, default=None, *, size=3, time=False):
         if name not in self.entries:

@@ -15,13 +15,16 @@ meet the four conditions of order 3), so the local error of the step is estimate
 
     e = y1 - y1* = h (k2 / 9 - k3 / 9 + (k4 - k5) / 6)
 
-measured on the velocities in the kinetic-energy norm, relative to the larger of the scene's energy scale (the
-yardstick of report.json's energy drift) and its kinetic energy E:  err = sqrt(sum m |e_v|^2 + e_w . I e_w) / sqrt(2 E). A step whose err passes the
-tolerance is taken again from its start in N = 2, 4, .. MAX_SUBSTEPS substeps, N^3 >= err / tolerance (the
-estimate is O(h^4) a step, N substeps add N (h/N)^4); a step of smooth motion is never taken again, and its
-result is the plain RK4 step's. Substeps read the time table's row of the step's start, so they are taken only
-while the inputs are constant over the step (core/rest.py inputs_still) and no wind blows; a step over the
-tolerance that cannot be refined is counted (report.json `steps_over_tolerance`).
+measured on the velocities in the kinetic-energy norm, relative to the larger E of the scene's energy scale
+(the yardstick of report.json's energy drift) and its kinetic energy:
+
+    err = sqrt(sum m |e_v|^2 + e_w . I e_w) / sqrt(2 E)
+
+A step whose err passes the tolerance is taken again from its start in N = 2, 4, .. MAX_SUBSTEPS substeps, N^3 >=
+err / tolerance (the estimate is O(h^4) a step, N substeps add N (h/N)^4); a step of smooth motion is never taken
+again, and its result is the plain RK4 step's. Substeps read the time table's row of the step's start, so they are
+taken only while the inputs are constant over the step (core/rest.py inputs_still) and no wind blows; a step over
+the tolerance that cannot be refined is counted (report.json `steps_over_tolerance`).
 
 `run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after, carry,
 tolerance, energy_scale)` advances y by `steps` steps of h from t0 (step i at t0 + i h, no accumulated sum); after
