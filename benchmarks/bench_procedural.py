@@ -31,7 +31,7 @@ from scipy.special import ellipk
 from isaac_lang.load import load_scene
 from isaac_runtime.plan import PlanOptions, compile_plan
 from isaac_runtime.rotation import quat_rotate
-from isaac_runtime.run import _energy_scale
+from isaac_runtime.plan import energy_scale
 from isaac_runtime.simulation import NumericalError, Simulation
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
@@ -73,7 +73,7 @@ class ChainError:
         self.energy = max(self.energy, abs(sim.energy() - self.e0))
 
     def result(self, sim) -> dict:
-        return {"joint_error": self.joint, "energy_drift": self.energy / _energy_scale(sim.plan)}
+        return {"joint_error": self.joint, "energy_drift": self.energy / energy_scale(sim.plan)}
 
 
 class PendulumError(ChainError):

@@ -79,3 +79,13 @@ def test_common_probe_keeps_the_start():
     p = common.Probe(1, 4, 1)
     p.record(0.0, [[1, 2, 3]], [[1, 0, 0, 0]], [[0, 0, 0]], [[0, 0, 0]])
     assert p.trajectory()["position"].shape == (1, 1, 3)
+
+
+def test_every_benchmark_script_imports():
+    """The bench_*.py scripts run outside `isaac bench`: an import that went stale must still fail here."""
+    import importlib
+    from pathlib import Path
+
+    folder = Path(cases.__file__).parent
+    for path in sorted(folder.glob("*.py")):
+        importlib.import_module(f"benchmarks.{path.stem}")
