@@ -76,19 +76,28 @@ def _right_hand_side(m, act, s, y, acc):
 
 
 @kernel
-def _add_friction(m, act, s, y, acc):
-    """acc += M^-1 (the sliding contacts' friction for the current s.lam); whether any contact slides (its
-    friction depends on lambda_n: the solve must be repeated, even where this lambda_n gave none)."""
-    turned_back = sliding_forces(act, m.constraints, s.param, y, s.R, s.lam, act.local, s.friction)
-    if turned_back >= 0 and s.counters[COUNTER_TURNED_BACK] == 0:
-        s.counters[COUNTER_TURNED_BACK] = turned_back + 1
-    _friction_accelerations(m, s, y, acc, 1.0)
+def _sliding(m, act, s):
+    """Whether any active contact slides (its friction depends on lambda_n)."""
     cons = m.constraints
     for i in range(len(act.instances)):
         k = act.instances[i]
         if cons.family[k] == M.CONTACT and s.param[k, M.CONTACT_SLIDE_MU] > 0.0:
             return True
     return False
+
+
+@kernel
+def _add_friction(m, act, s, y, acc):
+    """acc += M^-1 (the sliding contacts' friction for the current s.lam); whether any contact slides (its
+    friction depends on lambda_n: the solve must be repeated, even where this lambda_n gave none). Without a
+    sliding contact there is nothing to add (joints only, or contacts that stick)."""
+    if not _sliding(m, act, s):
+        return False
+    turned_back = sliding_forces(act, m.constraints, s.param, y, s.R, s.lam, act.local, s.friction)
+    if turned_back >= 0 and s.counters[COUNTER_TURNED_BACK] == 0:
+        s.counters[COUNTER_TURNED_BACK] = turned_back + 1
+    _friction_accelerations(m, s, y, acc, 1.0)
+    return True
 
 
 @kernel
