@@ -173,7 +173,7 @@ def _finish(m, act, s, y, table, integrator, j, h, stages):
     else:
         _runge_kutta(s, y, h, integrator, stages)
     place_kinematic(m.kinematic, table, j, y)
-    project(m, act, s, y, table, j, False)
+    project(m, act, s, y, table, j, False, h if integrator == EULER else 0.0)
     settle_rows(m, act, s, y)
 
 
@@ -258,7 +258,7 @@ def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, e
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     s.counters[COUNTER_KEPT] = 0  # (a factor in Lx from an earlier call may be of other rows)
     if entering:
-        project(m, act, s, y, table, 0, True)
+        project(m, act, s, y, table, 0, True, 0.0)
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
         record(m, act, s, y, table, 0, frames, f)

@@ -49,12 +49,35 @@ def _largest_errors(m, act, s, y):
 
 
 @inlined
-def project(m, act, s, y, table, j, fresh):
+def _factor_held(m, act, s, every):
+    """M^-1 J^T and the factor of the held rows' J M^-1 J^T at the current evaluation (R, J current; s.include
+    the held rows)."""
+    cons = m.constraints
+    world_inverse_inertia(m.bodies, s.R, s.inv_inertia)
+    inverse_mass_times_J(act, cons, m.bodies, s.inv_inertia, s.J, s.MJ)
+    assemble(act, s.J, s.MJ, s.include, every, cons.soft, s.Lx, s.diag)
+    dropped = factor(act, s.Lx, s.diag, s.work, s.dropped)
+    if dropped:
+        s.counters[COUNTER_RANK] += 1
+    # (the factor of the whole J M^-1 J^T when every row took part: the next evaluations may keep it)
+    s.counters[COUNTER_KEPT], s.counters[COUNTER_KEPT_DROPPED] = (1 if every else 0), dropped
+
+
+@inlined
+def project(m, act, s, y, table, j, fresh, h):
     """The held rows back on C = 0 and J v + ct = 0 at grid row j (module docstring). Returns whether it moved.
 
     With `fresh` False the factorization of J M^-1 J^T and M^-1 J^T of the step's last solve are reused when every
     row is held (a quasi-Newton step: they were evaluated O(h) from the end of the step, so the projection leaves
-    O(h |C|) of C where a fresh one leaves O(|C|^2), both far below PROJECT_POSITION after one iteration)."""
+    O(h |C|) of C where a fresh one leaves O(|C|^2), both far below PROJECT_POSITION after one iteration).
+
+    h > 0: the step was semi-implicit Euler's, of h, whose end is O(h^2) off the manifold (RK4's and the midpoint
+    rule's: O(h^5), O(h^3)). The position correction dx is then the constraint impulse it takes, as SHAKE has it
+    (v += dx / h, w += dtheta / h: the force that puts the step's end on the manifold acts over the step), and
+    the velocities are projected with M^-1 J^T and the factor at the corrected positions. Without the first, the
+    multipliers of the step's start leave a whirling body O(h^2 w^2) of extra speed along its new tangent; without
+    the second, the projection is oblique by the body's turn over the step, and can add kinetic energy: a rod
+    spinning at 20 rad/s about a nail gained 8 % of its energy in 0.25 s at 1 ms, and the 10-link chain blew up."""
     if not len(act.rows):
         return False
     cons = m.constraints
@@ -69,14 +92,8 @@ def project(m, act, s, y, table, j, fresh):
         s.include[i] = act.held[i]
         every = every and act.held[i]
     if fresh or not every:
-        world_inverse_inertia(m.bodies, s.R, s.inv_inertia)
-        inverse_mass_times_J(act, cons, m.bodies, s.inv_inertia, s.J, s.MJ)
-        assemble(act, s.J, s.MJ, s.include, every, cons.soft, s.Lx, s.diag)
-        dropped = factor(act, s.Lx, s.diag, s.work, s.dropped)
-        if dropped:
-            s.counters[COUNTER_RANK] += 1
-        # (the factor of the whole J M^-1 J^T when every row took part: the next evaluations may keep it)
-        s.counters[COUNTER_KEPT], s.counters[COUNTER_KEPT_DROPPED] = (1 if every else 0), dropped
+        _factor_held(m, act, s, every)
+    moved = False
     for _ in range(PROJECT_ITERATIONS):
         if worst_c <= PROJECT_POSITION:
             break
@@ -85,8 +102,13 @@ def project(m, act, s, y, table, j, fresh):
             s.rhs[i] = -s.C[r] if act.held[i] and not cons.velocity_only[r] else 0.0
         substitute(act, s.Lx, s.dropped, s.rhs, s.dlam)  # (s.lam keeps the step's forces: contacts read them)
         move_along(act, cons, m.bodies, s.MJ, s.dlam, s.delta, y, s.R)
+        if h > 0.0:
+            _impulse_of_move(m, s, y, h)
+        moved = True
         evaluate_rows(m, act, s, y, table, j)
         worst_c, worst_v = _largest_errors(m, act, s, y)
+    if moved and h > 0.0:
+        _factor_held(m, act, s, every)
     if worst_v > PROJECT_VELOCITY:
         for i in range(len(act.rows)):
             r = act.rows[i]
@@ -101,6 +123,15 @@ def project(m, act, s, y, table, j, fresh):
                 for c in range(6):
                     y[b, 7 + c] += s.delta[b, c]
     return True
+
+
+@inlined
+def _impulse_of_move(m, s, y, h):
+    """v += dx / h, w += dtheta / h for the move (dx, dtheta) in s.delta just made (project, h > 0)."""
+    for b in range(len(y) - 1):
+        if m.bodies.dynamic[b]:
+            for c in range(6):
+                y[b, 7 + c] += s.delta[b, c] / h
 
 
 @inlined

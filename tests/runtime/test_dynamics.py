@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from isaac_runtime.rotation import quat_rotate, quat_to_matrix
 from isaac_runtime.run import RunOptions, simulate
 from isaac_runtime.simulation import Simulation
 
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
 G = 9.81
 INTEGRATORS = ("rk4", "midpoint", "euler")
 
@@ -77,6 +79,34 @@ def test_torque_free_rotation_keeps_angular_momentum_and_energy():
     momentum = np.einsum("tij,jk,tlk,tl->ti", R, inertia_body, R, arrays["angular_velocity"][:, 0])
     assert np.max(np.abs(momentum - momentum[0])) < 1e-9
     assert np.max(np.abs(arrays["energy"] - arrays["energy"][0])) < 1e-9
+
+
+def test_euler_keeps_a_whirling_rod_on_its_circle_with_its_energy():
+    # a rod spinning at 20 rad/s about a nail at its end, no gravity: a uniform turn. Semi-implicit Euler's step takes
+    # the nail's correction as an impulse and projects the velocities at the corrected pose (dynamics/projection.py,
+    # h > 0); with the multipliers of the step's start and the step's own M^-1 J^T instead, the rod gained 8 % of its
+    # energy in 0.25 s and ran away at 3.4 s
+    body = """
+  gravity (0, 0, 0)
+  body rod box { size (0.2, 2 cm, 2 cm)  mass 0.5 kg  at (0.1, 0, 0)  velocity (0, 2, 0)  spin (0, 0, 20) rad/s }
+  constraint anchor nail(rod @ (-0.1, 0, 0), (0, 0, 0))"""
+    arrays, _ = run(scene(body, "euler", time="4 s"))
+    energy, t, x = arrays["energy"], arrays["time"], arrays["position"][:, 0]
+    assert np.max(np.abs(energy - energy[0])) <= 1e-12 * energy[0]
+    assert np.max(np.abs(np.hypot(x[:, 0], x[:, 1]) - 0.1)) <= 1e-12
+    # first order in its phase only: 20 t to 4e-3 rad after 80 rad
+    assert np.max(np.abs(np.unwrap(np.arctan2(x[:, 1], x[:, 0])) - 20 * t)) <= 5e-3
+
+
+@pytest.mark.parametrize("step, bound", [("1 ms", 4e-3), ("0.5 ms", 1e-3)])
+def test_euler_chain_keeps_its_energy_bounded(step, bound):
+    # the shipped 10-link chain with semi-implicit Euler for its 10 s: it ran away at 2.8 s (1 ms), 3.9 s (0.5 ms);
+    # now its energy error stays bounded and shrinks with the step (measured 1.9e-3 and 4.2e-4 of m g extent)
+    text = (SCENES / "chain.isaac").read_text().replace("integrator rk4  step 0.5 ms", f"integrator euler  step {step}")
+    assert f"integrator euler  step {step}" in text
+    result = simulate(load_text(text, name="chain.isaac", folder=SCENES).scene, RunOptions())
+    assert result.error is None, result.error
+    assert result.report["energy_drift_relative"] <= bound
 
 
 def test_moving_nail_drags_the_point_along_its_path():
