@@ -113,19 +113,20 @@ def factor(act, Lx, diagonal, work, dropped):
                 for p in range(at + 1, act.Lp[k + 1]):
                     work[act.Li[p]] -= Lx[p] * l_jk
         if pivot > RANK_RTOL * diagonal[j] and diagonal[j] > 0.0:
+            # (L_jj's reciprocal, and the column below it scaled by it as the work array is cleared)
+            dropped[j] = False
             inverse = 1.0 / math.sqrt(pivot)
             Lx[start] = inverse
             for p in range(start + 1, end):
                 Lx[p] = work[act.Li[p]] * inverse
-            dropped[j] = False
+                work[act.Li[p]] = 0.0
         else:
+            dropped[j] = True
+            count += 1
             Lx[start] = 1.0
             for p in range(start + 1, end):
                 Lx[p] = 0.0
-            dropped[j] = True
-            count += 1
-        for p in range(start + 1, end):
-            work[act.Li[p]] = 0.0
+                work[act.Li[p]] = 0.0
     return count
 
 

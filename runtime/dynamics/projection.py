@@ -35,16 +35,19 @@ HOLD = 1e-10
 
 @inlined
 def _largest_errors(m, act, s, y):
-    """(max |C| over held position rows, max |J v + ct| over held rows)."""
+    """(max |C| over held position rows, max |J v + ct| over held rows); s.target <- J v + ct of the held rows
+    (0 for the others): the right-hand side of the velocity projection, negated."""
     cons = m.constraints
     worst_c, worst_v = 0.0, 0.0
     for i in range(len(act.rows)):
+        s.target[i] = 0.0
         if not act.held[i]:
             continue
         r = act.rows[i]
         if not cons.velocity_only[r]:
             worst_c = max(worst_c, abs(s.C[r]))
-        worst_v = max(worst_v, abs(row_motion(cons, r, y, y, s.J, 7) + s.ct[r]))
+        s.target[i] = row_motion(cons, r, y, y, s.J, 7) + s.ct[r]
+        worst_v = max(worst_v, abs(s.target[i]))
     return worst_c, worst_v
 
 
@@ -111,8 +114,7 @@ def project(m, act, s, y, table, j, fresh, h):
         _factor_held(m, act, s, every)
     if worst_v > PROJECT_VELOCITY:
         for i in range(len(act.rows)):
-            r = act.rows[i]
-            s.rhs[i] = -(row_motion(cons, r, y, y, s.J, 7) + s.ct[r]) if act.held[i] else 0.0
+            s.rhs[i] = -s.target[i]
         substitute(act, s.Lx, s.dropped, s.rhs, s.dlam)
         for b in range(len(y)):
             for c in range(6):
