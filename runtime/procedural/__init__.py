@@ -2,7 +2,7 @@
 dynamics has today (XPBD with substeps, Mueller et al. 2020), compiled.
 
     substep.py   one substep's three stages: move (with the free rigid body's exact invariants), put back
-    project.py   the constraint stage: Gauss-Seidel over instances (default) or all rows at once (direct)
+    project.py   the constraint stage: all rows at once (direct, the default) or Gauss-Seidel over instances
     loop.py      forces once per step, the substeps, frames and blow-ups
 
 `ProceduralStepper` is the Python side: per epoch it orders the instances for the sweep and records where each
@@ -19,10 +19,6 @@ from ..core.rest import REST_STEPS
 from .loop import run
 from .project import Curves, Sweep
 
-# `projection auto`: all rows at once (one small factorization per substep) up to this many rows, Gauss-Seidel
-# sweeps beyond (see docs/procedural.md for the measurements); with contacts, all at once always (a resting
-# patch's rows are redundant: sweeps over them converge too slowly to hold a stack still)
-DIRECT_MAX_ROWS = 64
 
 
 class ProceduralStepper:
@@ -44,8 +40,9 @@ class ProceduralStepper:
         table = c.tabulate(t0, h, steps, self.grid)
         _, sw, curves = self._epoch(act)
         carry, self.last_rows = self.last_rows is act, act
-        all_at_once = self.projection == "direct" or (self.projection == "auto" and (
-            len(act.rows) <= DIRECT_MAX_ROWS or bool(len(act.rows)) and act.rows.max() >= c.joint_rows))
+        # `projection auto` is all rows at once, whatever their number (docs/procedural.md): sweeps blow up on
+        # binary trees of 63 bodies and more, and leave chains' joints open by tenths of a mm at twice the time
+        all_at_once = self.projection != "gauss_seidel"
         return self._run(c.model, act, sw, curves, c.scratch, y, table, h, steps, self.grid, self.iterations,
                          all_at_once, frame_step, frames, status, self.rest_after, carry)
 
