@@ -20,7 +20,6 @@ from .loop import run
 from .project import Curves, Sweep
 
 
-
 class ProceduralStepper:
     entries = (run, measure)  # the compiled entry points it calls
     rest_after = REST_STEPS  # steps at rest before the loop stops integrating (core/rest.py; 0: never)

@@ -257,27 +257,17 @@ def test_a_tumbling_box_keeps_energy_and_angular_momentum(substeps):
     assert worst_E < 1e-9 and worst_L < 1e-10
 
 
-def tree(count: int) -> str:
-    """A binary tree of `count` small spheres hung from its root (heap order: node i's children are 2i+1 and 2i+2),
-    each joined to its parent by a ball joint halfway between them."""
-    spread = [(i, int(math.log2(i + 1))) for i in range(count)]
-    at = [(((i + 1 - 2**d) + 0.5) / 2**d * 0.2 * 2**d - 0.1 * 2**d, -0.2 * d, 0.0) for i, d in spread]
-    lines = [f"  body n{i} sphere {{ radius 1 cm  mass 0.1 kg  at {at[i]}  collide off }}" for i in range(count)]
-    lines.append("  constraint root nail(n0 @ (0, 0, 0), (0, 0, 0))")
-    for i in range(1, count):
-        p = (i - 1) // 2
-        mid = [(a + b) / 2 for a, b in zip(at[i], at[p])]
-        arm_i, arm_p = tuple(m - c for m, c in zip(mid, at[i])), tuple(m - c for m, c in zip(mid, at[p]))
-        lines.append(f"  constraint j{i} point(n{i} @ {arm_i}, n{p} @ {arm_p})")
-    return "\n".join(lines)
-
-
 @pytest.mark.parametrize("method", ("auto", "direct"))
 def test_auto_holds_a_large_tree_with_every_row_at_once(method):
     # 63 spheres, 189 rows, at the plan's defaults (a step a frame, 20 substeps): sweeps (`gauss_seidel`) blow up at
     # 0.46 s, and trees of 127 to 1023 spheres at 0.25 to 0.3 s; `auto` took them beyond 64 rows. All rows at once
     # hold every joint
-    sim = simulation(tree(63), method, substeps=20, step="10 ms", end="1 s")
+    from benchmarks.scaling import tree_text
+
+    solver, text = "solver dynamics { integrator rk4  step 1 ms }", tree_text(63)
+    assert solver in text
+    procedural = f"solver procedural {{ step 10 ms  substeps 20  projection {method} }}"
+    sim = Simulation.from_text(text.replace(solver, procedural))
     e0 = sim.energy()
     sim.advance_to(1.0)
     assert sim.constraint_errors()[0] < 1e-8
