@@ -261,9 +261,27 @@ def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, er
         "energy_drift": float(np.nanmax(np.abs(energy - energy0))) if len(energy) else 0.0,
         "energy_drift_relative": float(np.nanmax(np.abs(energy - energy0)) / scale) if len(energy) else 0.0,
         "energy_scale": scale,
-        "warnings": warnings,
+        "contact": sim.contact_report(),
+        "warnings": warnings + contact_warnings(sim.contact_report()),
         "error": str(error) if error else None,
     }
+
+
+def contact_warnings(contact: dict | None) -> list:
+    """The capturing path's failed checks, each with its worst case's time and pair."""
+    if not contact or contact.get("path") != "capturing":
+        return []
+    said = []
+    if contact["steps_too_deep"]:
+        a, b = contact["deepest_pair"]
+        said.append(f"bodies interpenetrated by more than {contact['depth_limit'] * 1e3:g} mm in "
+                    f"{contact['steps_too_deep']} steps; deepest {contact['deepest'] * 1e3:.3g} mm, `{a}` and `{b}` "
+                    f"at t = {contact['deepest_time']:.6g} s (a smaller step, or thicker bodies, keeps them apart)")
+    if contact["steps_creating_energy"]:
+        a, b = contact["energy_created_pair"]
+        said.append(f"contact impulses created energy in {contact['steps_creating_energy']} steps; most "
+                    f"{contact['energy_created']:.3g} J, `{a}` and `{b}` at t = {contact['energy_created_time']:.6g} s")
+    return said
 
 
 def _settled(plan, arrays: dict) -> dict:

@@ -110,6 +110,7 @@ class Simulation:
         if self.collider is not None:
             self._active()
             self.collider.start()
+            self._choose_contact_path()
 
     # -- construction -------------------------------------------------------------------------------------
 
@@ -366,6 +367,8 @@ class Simulation:
                 raise self._failure()
             if stopped:  # the collision stage looks at the step that just ended
                 self.collider.on_stop(int(self._status[3]), int(self._status[2]), h, self._epoch(s.t - 0.5 * h))
+                if getattr(self.collider, "wants_capture", None):
+                    self.switch_to_capture(self.collider.wants_capture, t0 + done * h)
                 self._active()
             if in_python:
                 self._after_step(h)
@@ -476,6 +479,45 @@ class Simulation:
             self._act = act
             self.stepper.enter(act, self.state.y, self.state.t)
         return act
+
+    # -- the contact path -----------------------------------------------------------------------------------
+
+    def _choose_contact_path(self) -> None:
+        """A heap starts on the capturing path (runtime/capture); other scenes stay on the exact one until the
+        collision stage asks to change (an impact between two moving bodies: `collider.wants_capture`)."""
+        from . import capture
+
+        self.capture_refused = capture.eligible(self.plan)
+        self.collider.may_capture = self.capture_refused is None
+        if self.capture_refused is None and capture.crowded(self.plan):
+            n = int(np.count_nonzero(self.plan.dynamic[self.plan.collisions.collidable]))
+            self.switch_to_capture(f"a heap: {n} moving bodies collide")
+
+    def switch_to_capture(self, why: str, t_end: float | None = None) -> None:
+        """From now on contacts are solved in the capturing loop (runtime/capture), which keeps them itself; the
+        live state, at an impact inside a step that ends at t_end, is taken to t_end by it."""
+        from .capture import CaptureStage, CaptureStepper
+
+        stage = CaptureStage(self, self.events, why)
+        self.collider, self.stepper = stage, CaptureStepper(self.compiled, self.plan, stage)
+        self._compile_notice = CompileNotice.begin(*self.stepper.entries)
+        self._epoch_in = ()
+        act = self._active()
+        s = self.state
+        if t_end is not None and t_end - s.t > 1e-12:
+            self.stepper.run(act, s.y, s.t, t_end - s.t, 1, np.zeros(0, np.int64), self._frame_buffer(0), self._status)
+            if self._status[0] != DONE:
+                raise self._failure()
+            s.t = t_end
+
+    def contact_report(self) -> dict | None:
+        """report.json `contact`: which contact path ran and why, and the capturing path's checks."""
+        if self.collider is None:
+            return None
+        report = getattr(self.collider, "report", None)
+        if report is not None:
+            return report()
+        return {"path": "exact", "why": (self.capture_refused or "no impact between moving bodies")}
 
     def _place_kinematic(self) -> None:
         kin = self.compiled.model.kinematic

@@ -91,6 +91,10 @@ class Collider:
         self.gravity = float(np.linalg.norm(self.plan.gravity))  # |g|, m/s2
         self.resting_speed = max(RESTING_SPEED, RESTING_STEPS * self.gravity * self.plan.step)
         self.stats = {"impacts located": 0, "tunnelling caught": 0}
+        # the capturing path (runtime/capture): whether this scene may take it (Simulation says), and why it should
+        # now (an impact between two moving bodies: things falling on things make the contact set change at
+        # every step, which this stage would follow one look at a time)
+        self.may_capture, self.wants_capture = False, None
         self.reach = reach(cplan.table)
         pairs = sim.compiled.model.pairs
         # the compiled step's pair of bodies (i, j), in either order
@@ -227,6 +231,8 @@ class Collider:
             pair, bracket, _ = hit
             self._locate(pair, bracket, epoch)  # the live state is now at the time of impact
             self.resolve(self.scan(always=True), s.t, rewound=True, epoch=epoch)
+            if self.wants_capture:
+                return  # (the rest of the step is the capturing path's: Simulation.switch_to_capture)
             self._keep_contacts()
             self.sim._active()
             self._save_start_here()  # the new start of what is left of the step
@@ -234,6 +240,8 @@ class Collider:
             s.t = t_end
             scan = self.scan(always=True)
         self.resolve(scan, t_end, rewound=False, epoch=epoch)
+        if self.wants_capture:
+            return
         self._keep_contacts(scan)  # (resolve changes velocities only: the scan of these positions stands)
         self._clearances(scan)
 
@@ -498,13 +506,28 @@ class Collider:
         if contacts is None:
             return
         s, plan = self.sim.state, self.plan
-        if self._at_rest(contacts):
+        if self._at_rest(contacts) or self._hands_over(contacts, t):
             return
         bodies = Bodies(s.v, s.w, plan.inv_mass, world_inverse_inertia(scan.R, plan.inv_inertia_body), plan.dynamic)
         response = Response(contacts, s.x, bodies, self._joints(t, epoch))
         response.impacts(self.resting_speed)
         response.resting()
         self.log.record(contacts, response.outcome, self._impact_time(scan, contacts, t, rewound))
+
+    def _hands_over(self, contacts, t: float) -> bool:
+        """Whether two moving bodies strike each other here, in a scene that may take the capturing path: then the
+        impact is left to it (Simulation.switch_to_capture), from this instant on."""
+        if not self.may_capture:
+            return False
+        s, plan = self.sim.state, self.plan
+        u = row_velocity(contact_rows(contacts, s.x, contacts.normal), np.stack([contacts.a, contacts.b], 1), s.v, s.w)
+        moving = plan.dynamic[contacts.a] & plan.dynamic[contacts.b] & (u < -self.resting_speed)
+        if not moving.any():
+            return False
+        k = int(np.argmax(moving))
+        a, b = sorted((int(contacts.a[k]), int(contacts.b[k])))
+        self.wants_capture = f"an impact between moving bodies `{plan.names[a]}` and `{plan.names[b]}` at t = {t:.6g} s"
+        return True
 
     def _at_rest(self, contacts) -> bool:
         """Nothing approaching: lam = 0 solves every row (touching balls of the cradle before the strike)."""

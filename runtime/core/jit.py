@@ -45,7 +45,7 @@ import llvmlite.binding as ll  # (numba's own LLVM binding, imported with it)
 OPTIONS = {"error_model": "numpy", "nogil": True, "_nrt": False}
 # the packages whose source the cached entry points are built from
 _RUNTIME = Path(__file__).resolve().parent.parent
-_SOURCES = ("core", "dynamics", "procedural", "wind")
+_SOURCES = ("core", "dynamics", "procedural", "wind", "capture")
 # where the names of the symbols each cached library defines are kept (`_defined_names`)
 _SYMBOLS = _RUNTIME / "core" / "__pycache__"
 

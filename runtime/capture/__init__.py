@@ -1,0 +1,203 @@
+"""The capturing contact step (PHYSICS.md 5b): impacts, restitution and Coulomb friction of every contact solved at
+velocity level in each step, inside the compiled loop, for scenes whose contacts change too often for the exact
+path (runtime/collide: each impact located in time, each change of the contact set handed back to Python).
+
+    broad.py    world boxes grown by each body's travel, sorted along x, swept
+    narrow.py   closed-form contact points of a pair (boxes.py: box-box)
+    solve.py    the velocity-level contact problem, projected Gauss-Seidel, warm-started by feature
+    loop.py     the step: kick, contacts, solve, drift, checks, events, frames
+    data.py     the run's contacts, pairs, checks and events
+
+`choose(plan)` says whether a scene can take this path and whether it starts on it; `CaptureStage` stands where
+the collision stage of the exact path stands (docs/collisions.md, "Many contacts").
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import data as D
+from .loop import BOUNCE_SPEED, DRAIN, GROW, run
+
+# a scene starts on the capturing path when it has at least this many moving bodies that collide (a heap)
+CROWD = 24
+# the arrays of Frames with one entry per frame (core/record.py)
+_PER_FRAME = ("y", "energy", "error", "worst", "contact")
+# an interpenetration deeper than this is counted as a failure of the step (m)
+DEPTH_LIMIT = 1e-3
+
+
+def eligible(plan) -> str | None:
+    """Why the scene cannot take the capturing path, or None when it can: every collidable shape has a compiled
+    closed form, and there are no joints (the exact path solves them; docs/collisions.md says what is left)."""
+    from .narrow import closed_form
+
+    cp = plan.collisions
+    if cp is None:
+        return "no collisions"
+    if cp.table.elements is not None:
+        return "compound bodies"
+    kinds = {int(cp.table.kind[i]) for i in cp.collidable}
+    moving = {int(cp.table.kind[i]) for i in cp.collidable if plan.dynamic[i]}
+    for ka in sorted(moving):
+        for kb in sorted(kinds):
+            if not closed_form(ka, kb):
+                return "a pair without a compiled closed form"
+    if plan.constraints is not None and len(plan.constraints.row_bodies):
+        return "joints (solved by the exact path only)"
+    return None
+
+
+def crowded(plan) -> bool:
+    cp = plan.collisions
+    return int(np.count_nonzero(plan.dynamic[cp.collidable])) >= CROWD
+
+
+class _NoLasting:
+    """What the simulation asks of the exact path's lasting contacts: none (contacts live in the loop's data)."""
+
+    version = -1
+
+    @staticmethod
+    def active_rows():
+        return np.zeros(0, np.int64)
+
+
+class CaptureStage:
+    """The collision stage on the capturing path: the exclusions of each epoch, and the events the loop wrote."""
+
+    lasting = _NoLasting()
+
+    def __init__(self, sim, events: list, why: str):
+        from ..collide.events import EventLog
+        from ..collide.shapes import PLANE
+
+        plan, cp = sim.plan, sim.plan.collisions
+        self.sim, self.cp, self.why = sim, cp, why
+        self.log = EventLog(list(plan.names), events, plan.frame_times)
+        n = plan.n
+        kind = cp.table.kind
+        planes = np.array([i for i in cp.collidable if kind[i] == PLANE], np.int64)
+        order = np.array([i for i in cp.collidable if kind[i] != PLANE], np.int64)
+        order = order[np.argsort(sim.state.y[order, 0], kind="stable")]
+        self.sweep = D.sweep(order, planes, n, cp.always_excluded, 8 * len(order) + 64)
+        self.contacts = D.contacts(8 * len(order) + 64)
+        self.checks = D.checks()
+        self.events = D.events(8192)
+        self.pseudo = np.zeros((n + 1, 13))
+        self.materials = D.Materials(*_materials(cp, n))
+        self.switched_at = sim.state.t
+
+    def start(self) -> None:
+        pass
+
+    def on_epoch(self, epoch, t: float) -> None:
+        """A pair joined by a constraint now, or excluded by a windowed `exclude`, does not collide."""
+        from ..collide.pairs import pair_keys
+
+        n = self.sim.plan.n
+        keys = np.union1d(self.cp.always_excluded, self.cp.excluded_at(t))
+        if epoch is not None and epoch.active.size:
+            rb = self.sim.plan.constraints.row_bodies[epoch.active]
+            both = rb[(rb[:, 0] >= 0) & (rb[:, 1] >= 0) & (rb[:, 0] != rb[:, 1])]
+            keys = np.union1d(keys, pair_keys(np.sort(both, axis=1), n))
+        self.sweep = self.sweep._replace(excluded=np.ascontiguousarray(np.sort(keys), np.int64))
+
+    def frame_events(self, t: float, table) -> None:
+        pass  # (the loop writes the pressing pairs' events at its frames)
+
+    def on_stop(self, code: int, which: int, h: float, epoch) -> None:
+        raise AssertionError("the capturing loop never stops for a change of contact")
+
+    def grow(self) -> None:
+        """Room for twice what the last step found."""
+        ct, sw = self.contacts, self.sweep
+        if ct.count[1] > len(ct.a):
+            self.contacts = D.grown(ct, 2 * int(ct.count[1]))
+        if sw.count[0] > len(sw.pairs):
+            self.sweep = sw._replace(pairs=np.zeros((2 * int(sw.count[0]), 2), np.int64))
+
+    def drain(self) -> None:
+        """The loop's events into the event log (impacts and pressing pairs, in the order written)."""
+        ev = self.events
+        count = int(ev.count[0])
+        rows = ev.rows[:min(count, len(ev.rows))]
+        for row in rows:
+            a, b = int(row[2]), int(row[3])
+            kind = "impact" if row[1] == D.IMPACT else "contact"
+            self.log.events.append(self.log._event(row[0], a, b, row[4:7], row[7:10], row[10], row[11], row[12],
+                                                   kind))
+        if count > len(ev.rows):
+            self.events = D.events(2 * count)
+        ev.count[0] = 0
+
+    def report(self) -> dict:
+        """What the run's report says of this path (report.json `contact`)."""
+        w, c = self.checks.worst, self.checks.counts
+        names = self.sim.plan.names
+        return {"path": "capturing", "why": self.why, "since": float(self.switched_at),
+                "steps": int(c[3]), "contacts_solved": int(c[2]),
+                "deepest": float(w[0]), "deepest_time": float(w[1]),
+                "deepest_pair": [names[int(w[2])], names[int(w[3])]] if w[0] > 0 else [],
+                "steps_too_deep": int(c[0]), "depth_limit": DEPTH_LIMIT,
+                "energy_created": float(w[4]), "energy_created_time": float(w[5]),
+                "energy_created_pair": [names[int(w[6])], names[int(w[7])]] if w[4] > 0 else [],
+                "steps_creating_energy": int(c[1])}
+
+
+def _materials(cp, n):
+    from ..collide import DEFAULT_FRICTION, DEFAULT_RESTITUTION
+
+    friction, restitution, has = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1, np.bool_)
+    friction[:n], restitution[:n], has[:n] = cp.friction[:n], cp.restitution[:n], cp.has_material[:n]
+    return friction, restitution, has, np.array([DEFAULT_FRICTION, DEFAULT_RESTITUTION])
+
+
+class CaptureStepper:
+    """The Python side of the capturing loop: calls it, grows its buffers, hands on its events."""
+
+    grid = 1
+    entries = (run,)
+    rest_after = 0
+
+    def __init__(self, compiled, plan, stage: CaptureStage):
+        from ..core.jit import Bound
+        from ..plan import energy_scale
+        from ..collide.collider import RESTING_SPEED, RESTING_STEPS
+
+        self.compiled, self.stage = compiled, stage
+        g = float(np.linalg.norm(plan.gravity)) if getattr(plan, "gravity", None) is not None else 9.81
+        self.resting = max(RESTING_SPEED, RESTING_STEPS * g * plan.step, BOUNCE_SPEED)
+        self.energy_tol = 1e-6 * max(energy_scale(plan), 1e-12)
+        # the procedural plan's substeps are the capturing loop's steps (a position-level plan steps coarsely)
+        self.substeps = int(plan.scene.solver.substeps) if plan.solver == "procedural" else 1
+        self._run = Bound(run)
+
+    def run(self, act, y, t0: float, h: float, steps: int, frame_step, frames, status) -> int:
+        """`steps` steps of h (loop.run), each in `substeps` steps of the loop (the procedural plan's substeps);
+        buffers grown and events handed on between calls of the loop until every step is taken or a body ran
+        away. Returns the steps taken."""
+        c, st, k = self.compiled, self.stage, self.substeps
+        hs, total = h / k, steps * k
+        table = c.tabulate(t0, hs, total, self.grid)
+        frame_at = np.asarray(frame_step, np.int64) * k
+        done, first = 0, 0  # loop steps taken, frames recorded
+        while True:
+            later = frame_at[first:] - done
+            part = frames._replace(**{name: getattr(frames, name)[first:] for name in _PER_FRAME})
+            taken = self._run(c.model, act, c.scratch, st.contacts, st.sweep, st.checks, st.events, st.pseudo,
+                              st.materials, y, table[done * self.grid:], hs, total - done, self.grid, later, part,
+                              status, self.resting, DEPTH_LIMIT, self.energy_tol)
+            st.drain()
+            first += int(np.count_nonzero(later <= taken))
+            done += taken
+            if status[0] == GROW:
+                st.grow()
+            if status[0] not in (GROW, DRAIN) or done >= total:
+                break
+        if status[0] in (GROW, DRAIN):
+            status[0] = 0
+        status[1] = -(-int(status[1]) // k) if status[0] else status[1]
+        return done // k
+
+    def enter(self, act, y, t: float) -> None:
+        pass

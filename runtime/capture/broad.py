@@ -1,0 +1,148 @@
+"""Broad phase of the capturing step, compiled: each body's world box grown by how far it can move in the step,
+kept sorted along x from step to step (insertion sort: bodies move little between steps, so a step costs about
+one pass), swept for overlapping boxes; planes are tested against every box by the box's lowest corner.
+
+Cost: n for the boxes and the pass, plus the pairs whose x extents overlap (n at a given density).
+"""
+from __future__ import annotations
+
+import math
+
+from ..core.jit import kernel
+from ..core.model import SHAPE_BOX, SHAPE_CAPSULE, SHAPE_CYLINDER, SHAPE_NONE, SHAPE_PLANE, SHAPE_SPHERE
+
+
+@kernel
+def _extent(shapes, i, R, k):
+    """Half the extent along world axis k of body i's shape about its centre (R current)."""
+    kind = shapes.kind[i]
+    r = shapes.radius[i]
+    if kind == SHAPE_SPHERE:
+        return r
+    if kind == SHAPE_CAPSULE:
+        # the axis (body z) from -L to +L, and a sphere of r about every point of it
+        return abs(R[i, k, 2]) * shapes.half_length[i] + r
+    if kind == SHAPE_CYLINDER:
+        # a disc of radius r across the axis a reaches r sqrt(1 - a_k^2) along axis k
+        a = R[i, k, 2]
+        return abs(a) * shapes.half_length[i] + r * math.sqrt(max(0.0, 1.0 - a * a))
+    # a box (or any shape's local bounding box): sum over the body axes of |R_kj| half_j
+    return abs(R[i, k, 0]) * shapes.half[i, 0] + abs(R[i, k, 1]) * shapes.half[i, 1] + abs(R[i, k, 2]) * shapes.half[i, 2]
+
+
+@kernel
+def reach(shapes, i):
+    """The farthest point of body i's shape from its centre of mass, m (planes: 0)."""
+    kind = shapes.kind[i]
+    if kind == SHAPE_SPHERE:
+        return shapes.radius[i]
+    if kind == SHAPE_CAPSULE:
+        return shapes.half_length[i] + shapes.radius[i]
+    if kind == SHAPE_CYLINDER:
+        return math.sqrt(shapes.half_length[i] ** 2 + shapes.radius[i] ** 2)
+    if kind == SHAPE_PLANE or kind == SHAPE_NONE:
+        return 0.0
+    c = shapes.centre[i]
+    return math.sqrt((abs(c[0]) + shapes.half[i, 0]) ** 2 + (abs(c[1]) + shapes.half[i, 1]) ** 2
+                     + (abs(c[2]) + shapes.half[i, 2]) ** 2)
+
+
+@kernel
+def travel(shapes, i, y, h):
+    """How far any point of body i can move in a step of h at its present velocities: (|v| + |w| reach) h."""
+    v = math.sqrt(y[i, 7] ** 2 + y[i, 8] ** 2 + y[i, 9] ** 2)
+    w = math.sqrt(y[i, 10] ** 2 + y[i, 11] ** 2 + y[i, 12] ** 2)
+    return (v + w * reach(shapes, i)) * h
+
+
+@kernel
+def _boxes(shapes, sw, y, R, h, margin):
+    """sw.box[i] <- body i's world box, grown by the margin and its travel over the step."""
+    for idx in range(len(sw.order)):
+        i = sw.order[idx]
+        grow = margin + travel(shapes, i, y, h)
+        for k in range(3):
+            # a mesh's box is about its local centre, turned with the body
+            centre = y[i, k] + R[i, k, 0] * shapes.centre[i, 0] + R[i, k, 1] * shapes.centre[i, 1] + R[i, k, 2] * shapes.centre[i, 2]
+            e = _extent(shapes, i, R, k) + grow
+            sw.box[i, k], sw.box[i, 3 + k] = centre - e, centre + e
+
+
+@kernel
+def _sort(sw):
+    """Insertion sort of sw.order by the boxes' low x (nearly sorted from the last step: about n)."""
+    order, box = sw.order, sw.box
+    for idx in range(1, len(order)):
+        body = order[idx]
+        low = box[body, 0]
+        j = idx - 1
+        while j >= 0 and box[order[j], 0] > low:
+            order[j + 1] = order[j]
+            j -= 1
+        order[j + 1] = body
+
+
+@kernel
+def is_excluded(keys, key):
+    """Whether key is in the sorted array keys (binary search)."""
+    lo, hi = 0, len(keys)
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if keys[mid] < key:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo < len(keys) and keys[lo] == key
+
+
+@kernel
+def _add_pair(sw, dynamic, n, i, j):
+    """Candidate pair (min, max) unless neither moves or it is excluded now."""
+    if not dynamic[i] and not dynamic[j]:
+        return
+    a, b = min(i, j), max(i, j)
+    if is_excluded(sw.excluded, a * n + b):
+        return
+    c = sw.count[0]
+    if c < len(sw.pairs):
+        sw.pairs[c, 0], sw.pairs[c, 1] = a, b
+    sw.count[0] = c + 1
+
+
+@kernel
+def _plane_pairs(shapes, sw, dynamic, n, y, R):
+    """Every body whose box reaches below a plane's surface (the box's lowest corner along the plane's normal)."""
+    for p_idx in range(len(sw.planes)):
+        p = sw.planes[p_idx]
+        nx = R[p, 0, 0] * shapes.normal[p, 0] + R[p, 0, 1] * shapes.normal[p, 1] + R[p, 0, 2] * shapes.normal[p, 2]
+        ny = R[p, 1, 0] * shapes.normal[p, 0] + R[p, 1, 1] * shapes.normal[p, 1] + R[p, 1, 2] * shapes.normal[p, 2]
+        nz = R[p, 2, 0] * shapes.normal[p, 0] + R[p, 2, 1] * shapes.normal[p, 1] + R[p, 2, 2] * shapes.normal[p, 2]
+        for idx in range(len(sw.order)):
+            i = sw.order[idx]
+            box = sw.box[i]
+            # the box's corner lowest along N: centre . N - sum |N_k| half_k, measured from the plane's point
+            cx, cy, cz = 0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])
+            low = (nx * (cx - y[p, 0]) + ny * (cy - y[p, 1]) + nz * (cz - y[p, 2])
+                   - 0.5 * (abs(nx) * (box[3] - box[0]) + abs(ny) * (box[4] - box[1]) + abs(nz) * (box[5] - box[2])))
+            if low <= 0.0:
+                _add_pair(sw, dynamic, n, i, p)
+
+
+@kernel
+def find_pairs(shapes, sw, dynamic, y, R, h, margin):
+    """sw.pairs[:sw.count[0]] <- the pairs whose grown boxes overlap (count beyond len(sw.pairs): grow, retake)."""
+    n = len(y) - 1
+    sw.count[0] = 0
+    _boxes(shapes, sw, y, R, h, margin)
+    _sort(sw)
+    order, box = sw.order, sw.box
+    for idx in range(len(order)):
+        i = order[idx]
+        for jdx in range(idx + 1, len(order)):
+            j = order[jdx]
+            if box[j, 0] > box[i, 3]:
+                break
+            if box[j, 1] > box[i, 4] or box[i, 1] > box[j, 4] or box[j, 2] > box[i, 5] or box[i, 2] > box[j, 5]:
+                continue
+            _add_pair(sw, dynamic, n, i, j)
+    _plane_pairs(shapes, sw, dynamic, n, y, R)

@@ -1,0 +1,262 @@
+"""The capturing step loop, compiled: every step finds its contacts and solves them at velocity level with the
+forces, so contacts that appear, part, stick or slide never leave the loop (PHYSICS.md 5b, Moreau-Jean):
+
+    1. forces at the step's start; v- = v + h F / m, w- = w + h I^-1 tau       (kick)
+    2. broad phase (broad.py), narrow phase of every candidate pair (narrow.py), with the gap each pair can close
+       in the step (speculative contacts: nothing tunnels while it moves less than the margin it was given)
+    3. the contact solve (solve.py): impulses so that v+ meets the contacts, restitution and friction, warm-started
+    4. x += h v+; the free rotation of w+ over h (energy-keeping, procedural/substep.py); the position pass's
+       pseudo-velocities move the positions only                              (drift)
+    5. checks: interpenetration beyond the limit, energy created by the contacts (counted, the worst kept with
+       its time and pair), a body that ran away (the call ends); events: impacts and, at frames, pressing pairs
+
+A step that finds more pairs or contacts than the buffers hold is undone and the call ends (GROW): the Python side
+grows them and calls again. The model is never written; contacts, pairs and checks are the run's data.
+"""
+from __future__ import annotations
+
+import math
+
+from ..core.bodies import copy_state, energy, place_kinematic, rotations, runaway_body, turn, world_inverse_inertia
+from ..core.jit import entry, kernel
+from ..core.record import DONE, RUNAWAY_BODY, trace_step
+from ..core.timetable import TIME
+from ..procedural.loop import step_forces
+from ..procedural.substep import _free_rotation
+from .broad import find_pairs, travel
+from .data import EVENT_WIDTH, IMPACT, PRESSING
+from .narrow import pair_contacts
+from .solve import impacts, iterate, prepare, separate, work
+
+GROW, DRAIN = 4, 5
+# an approach slower than this does not bounce (m/s): the speed of a fall through 0.13 mm, what a body resting on a
+# contact a hair apart reaches before its contact holds it (a larger threshold than the exact path's, which
+# locates every impact and so never sees such a fall)
+BOUNCE_SPEED = 0.05  # status codes beyond core/record.py's: buffers too small (step undone); events to hand on
+
+
+@kernel
+def _kick(bodies, s, y, h):
+    """v += h F / m, w += h I^-1 tau of the dynamic bodies; the torque is spent (the drift turns freely)."""
+    for b in range(len(y) - 1):
+        if not bodies.dynamic[b]:
+            continue
+        for k in range(3):
+            y[b, 7 + k] += h * bodies.inv_mass[b] * s.force[b, k]
+        for k in range(3):
+            y[b, 10 + k] += h * (s.inv_inertia[b, k, 0] * s.torque[b, 0] + s.inv_inertia[b, k, 1] * s.torque[b, 1]
+                                 + s.inv_inertia[b, k, 2] * s.torque[b, 2])
+        for k in range(3):
+            s.torque[b, k] = 0.0
+
+
+@kernel
+def _mix(mats, a, b):
+    """(friction sqrt(mu_a mu_b), restitution max(e_a, e_b)); a body without a material takes the other's, two
+    without take the defaults (collide/__init__.py mix)."""
+    ha, hb = mats.has[a], mats.has[b]
+    if ha and hb:
+        return math.sqrt(mats.friction[a] * mats.friction[b]), max(mats.restitution[a], mats.restitution[b])
+    if ha:
+        return mats.friction[a], mats.restitution[a]
+    if hb:
+        return mats.friction[b], mats.restitution[b]
+    return mats.default[0], mats.default[1]
+
+
+@kernel
+def _narrow(m, s, ct, sw, mats, y, h):
+    """Contacts of every candidate pair; returns how many were found (beyond the capacity: grow)."""
+    found = 0
+    capacity = len(ct.a)
+    for p in range(sw.count[0]):
+        a, b = sw.pairs[p, 0], sw.pairs[p, 1]
+        margin = m.margin + travel(m.shapes, a, y, h) + travel(m.shapes, b, y, h)
+        k = pair_contacts(m.shapes, a, b, y, s.R, margin, ct.point, ct.normal, ct.depth, ct.feature, found, capacity,
+                           sw.work)
+        mu, e = _mix(mats, a, b)
+        for c in range(found, min(found + k, capacity)):
+            ct.a[c], ct.b[c], ct.mu[c], ct.e[c] = a, b, mu, e
+        found += k
+    return found
+
+
+@kernel
+def _keep_old(ct):
+    """The step's contacts become the last step's, sorted by key (Shell's sort, moving lam and acc along)."""
+    count = ct.count[0]
+    for c in range(count):
+        ct.old_key[c], ct.old_acc[c] = ct.key[c], ct.acc[c]
+        for k in range(3):
+            ct.old_lam[c, k] = ct.lam[c, k]
+    ct.count[2] = count
+    gap = count // 2
+    while gap > 0:
+        for i in range(gap, count):
+            key, acc, l0, l1, l2 = ct.old_key[i], ct.old_acc[i], ct.old_lam[i, 0], ct.old_lam[i, 1], ct.old_lam[i, 2]
+            j = i
+            while j >= gap and ct.old_key[j - gap] > key:
+                ct.old_key[j], ct.old_acc[j] = ct.old_key[j - gap], ct.old_acc[j - gap]
+                for k in range(3):
+                    ct.old_lam[j, k] = ct.old_lam[j - gap, k]
+                j -= gap
+            ct.old_key[j], ct.old_acc[j] = key, acc
+            ct.old_lam[j, 0], ct.old_lam[j, 1], ct.old_lam[j, 2] = l0, l1, l2
+        gap //= 2
+
+
+@kernel
+def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach):
+    i = ev.count[0]
+    ev.count[0] = i + 1
+    if i >= len(ev.rows):
+        return
+    row = ev.rows[i]
+    row[0], row[1], row[2], row[3] = t, kind, a, b
+    for k in range(3):
+        row[4 + k], row[7 + k] = point[k], normal[k]
+    row[10], row[11], row[12] = impulse, slip, approach
+
+
+@kernel
+def _pair_events(ct, ev, t, h, resting, pressing):
+    """One event per pair of consecutive contacts: its impacts now (pressing False), or, at a frame, its impulse
+    since the last frame (pressing True; acc reset)."""
+    c = 0
+    count = ct.count[0]
+    while c < count:
+        end = c
+        while end < count and ct.a[end] == ct.a[c] and ct.b[end] == ct.b[c]:
+            end += 1
+        impulse, px, py, pz, nx, ny, nz, slip, approach, soonest = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, h
+        for i in range(c, end):
+            un = ct.before[i, 0]
+            if pressing:
+                p = ct.acc[i]
+                ct.acc[i] = 0.0
+            else:
+                p = ct.hit[i]
+                if p > 0.0:
+                    soonest = min(soonest, max(0.0, -ct.depth[i]) / -un)
+                    approach = max(approach, -un)
+                    slip = max(slip, math.sqrt(ct.before[i, 1] ** 2 + ct.before[i, 2] ** 2))
+            if p <= 0.0:
+                continue
+            impulse += p
+            px, py, pz = px + p * ct.point[i, 0], py + p * ct.point[i, 1], pz + p * ct.point[i, 2]
+            nx, ny, nz = nx + p * ct.normal[i, 0], ny + p * ct.normal[i, 1], nz + p * ct.normal[i, 2]
+        if impulse > 0.0:
+            size = math.sqrt(nx * nx + ny * ny + nz * nz)
+            kind = PRESSING if pressing else IMPACT
+            _event(ev, t if pressing else t + soonest, kind, ct.a[c], ct.b[c], (px / impulse, py / impulse, pz / impulse),
+                   (nx / size, ny / size, nz / size), impulse, slip, approach)
+        c = end
+
+
+@kernel
+def _check(ct, chk, y, t, depth_limit, energy_tol):
+    """The step's checks (data.py Checks): the deepest contact, and the energy its impulses created."""
+    chk.counts[2] += ct.count[0]
+    chk.counts[3] += 1
+    deepest, which = 0.0, -1
+    for c in range(ct.count[0]):
+        if ct.depth[c] > deepest:
+            deepest, which = ct.depth[c], c
+    if deepest > depth_limit:
+        chk.counts[0] += 1
+    if deepest > chk.worst[0]:
+        chk.worst[0], chk.worst[1], chk.worst[2], chk.worst[3] = deepest, t, ct.a[which], ct.b[which]
+    created, most = work(ct, y)
+    if created > energy_tol:
+        chk.counts[1] += 1
+    if created > chk.worst[4] and most >= 0:
+        chk.worst[4], chk.worst[5], chk.worst[6], chk.worst[7] = created, t, ct.a[most], ct.b[most]
+
+
+@kernel
+def _drift(m, s, y, pseudo, moved, h):
+    """x += h (v + v~), the free rotation of w over h, then the turn h w~ (v~, w~: the position pass's)."""
+    for b in range(len(y) - 1):
+        if not m.bodies.dynamic[b]:
+            continue
+        for k in range(3):
+            y[b, k] += h * (y[b, 7 + k] + (pseudo[b, 7 + k] if moved else 0.0))
+        _free_rotation(m.bodies, b, y, s.R, s.torque, h)
+        if moved:
+            turn(y, b, h * pseudo[b, 10], h * pseudo[b, 11], h * pseudo[b, 12])
+
+
+@kernel
+def capture_step(m, s, ct, sw, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit, energy_tol):
+    """One step of h from grid row j (module docstring). Returns False when the buffers were too small (y is then
+    as it was at the step's start)."""
+    t = table[j, TIME]
+    copy_state(y, s.start)
+    step_forces(m, s, y, table, j, h)  # (R current)
+    world_inverse_inertia(m.bodies, s.R, s.inv_inertia)
+    _kick(m.bodies, s, y, h)
+    find_pairs(m.shapes, sw, m.bodies.dynamic, y, s.R, h, m.margin)
+    if sw.count[0] > len(sw.pairs):
+        copy_state(s.start, y)
+        return False
+    found = _narrow(m, s, ct, sw, mats, y, h)
+    ct.count[1] = found
+    if found > len(ct.a):
+        copy_state(s.start, y)
+        return False
+    ct.count[0] = found
+    n = len(y) - 1
+    prepare(m.bodies, s.inv_inertia, ct, y, n, h, resting)
+    impacts(m.bodies, s.inv_inertia, ct, y, h, resting)
+    iterate(m.bodies, s.inv_inertia, ct, y)
+    _check(ct, chk, y, t, depth_limit, energy_tol)
+    for c in range(found):
+        ct.acc[c] += ct.lam[c, 0] + ct.hit[c]
+    _pair_events(ct, ev, t, h, resting, False)
+    moved = separate(m.bodies, s.inv_inertia, ct, pseudo, h)
+    _drift(m, s, y, pseudo, moved, h)
+    place_kinematic(m.kinematic, table, j + grid, y)
+    _keep_old(ct)
+    return True
+
+
+@kernel
+def _record(m, s, y, frames, f):
+    """Frame f: the state and its energy (no joints on this path: no constraint error)."""
+    copy_state(y, frames.y[f])
+    rotations(y, s.R)
+    frames.energy[f] = energy(m.bodies, s.R, y)
+    frames.error[f], frames.worst[f] = 0.0, -1
+
+
+@entry
+def run(m, act, s, ct, sw, chk, ev, pseudo, mats, y, table, h, steps, grid, frame_step, frames, status, resting,
+        depth_limit, energy_tol):
+    """Advance y by `steps` steps of h (module docstring); frames recorded at frame_step (steps counted from the
+    call's start, 0: before the first). Returns the steps taken; status (4,) <- (code, step, body, 0)."""
+    status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
+    f = 0
+    while f < len(frame_step) and frame_step[f] == 0:
+        _record(m, s, y, frames, f)
+        f += 1
+    for step in range(steps):
+        j = grid * step
+        if not capture_step(m, s, ct, sw, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit,
+                            energy_tol):
+            status[0], status[1] = GROW, step
+            return step
+        trace_step(y, frames, step)
+        body = runaway_body(m.bodies, y)
+        if body >= 0:
+            status[0], status[1], status[2] = RUNAWAY_BODY, step + 1, body
+            return step + 1
+        while f < len(frame_step) and frame_step[f] == step + 1:
+            _record(m, s, y, frames, f)
+            _pair_events(ct, ev, table[j + grid, TIME], h, resting, True)
+            for c in range(ct.count[2]):
+                ct.old_acc[c] = 0.0  # (every pressing pair's impulse was handed on: the next frame counts anew)
+            f += 1
+        if ev.count[0] * 2 > len(ev.rows):
+            status[0], status[1] = DRAIN, step + 1
+            return step + 1
+    return steps

@@ -1,0 +1,145 @@
+"""The capturing contact path (runtime/capture): things falling on things, pushed into things, heaps. Each scene
+has an answer from the physics: a push against Coulomb friction and Newton's restitution, momentum through a row of
+balls, energy that never rises, no interpenetration, a stack that stands still; in both plans."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from isaac_runtime.simulation import Simulation
+
+G = 9.81
+PLANS = {"dynamics": "solver dynamics { integrator rk4  step 1 ms }",
+         "procedural": "solver procedural { step 10 ms  substeps 10 }"}
+
+
+def scene(body_lines: str, plan: str = "dynamics", end: float = 2.0, gravity: float = G,
+          material: str = "density 500 kg/m3  friction 0.25  restitution 0.4") -> str:
+    return (f"scene s {{\n  time 0 s .. {end} s\n  frames 100 Hz\n  gravity (0, {-gravity}, 0) m/s2\n"
+            f"  {PLANS[plan]}\n  material m {{ {material} }}\n{body_lines}\n}}\n")
+
+
+def finish(text: str, capture: bool = False) -> Simulation:
+    sim = Simulation.from_text(text)
+    if capture:
+        sim.switch_to_capture("test")
+    energies = [sim.energy()]
+    steps = 40
+    for k in range(steps):
+        sim.advance_to(sim.plan.start + (k + 1) * (sim.plan.end - sim.plan.start) / steps)
+        energies.append(sim.energy())
+    sim.energies = np.array(energies)
+    return sim
+
+
+def slide(v: float, mu: float) -> float:
+    return v * v / (2 * mu * G)
+
+
+@pytest.mark.parametrize("plan", PLANS)
+@pytest.mark.parametrize("v0, mu, e, gap", [(3.0, 0.25, 0.4, 0.35), (2.2, 0.4, 0.0, 0.2), (4.0, 0.3, 0.8, 0.5)])
+def test_a_box_pushed_into_another_ends_where_friction_and_restitution_say(plan, v0, mu, e, gap):
+    # the striker slides `gap` to the struck box (v1^2 = v0^2 - 2 mu g gap), the impact of equal masses leaves
+    # them at v1 (1 -+ e) / 2, and each slides v^2 / (2 mu g) further
+    side = 0.15
+    bodies = (f"  body floor plane {{ material m }}\n"
+              f"  body striker box {{ size ({side}, {side}, {side}) m  material m  at ({-side - gap}, {side / 2}, 0) m"
+              f"  velocity ({v0}, 0, 0) m/s }}\n"
+              f"  body struck box {{ size ({side}, {side}, {side}) m  material m  at (0, {side / 2}, 0) m }}")
+    sim = finish(scene(bodies, plan, material=f"density 500 kg/m3  friction {mu}  restitution {e}"))
+    v1 = math.sqrt(v0 * v0 - 2 * mu * G * gap)
+    striker = -side + slide(v1 * (1 - e) / 2, mu)
+    struck = slide(v1 * (1 + e) / 2, mu)
+    x = sim.state.y[[sim.body("striker"), sim.body("struck")], 0]
+    assert abs(x[0] - striker) < 3e-3 and abs(x[1] - struck) < 3e-3, (x, striker, struck)
+    assert sim.contact_report()["path"] == "capturing"
+    assert np.all(np.diff(sim.energies) <= 1e-6 * sim.energies[0])
+
+
+@pytest.mark.parametrize("capture", [False, True])
+def test_a_row_of_balls_passes_the_strikers_momentum_to_the_last(capture):
+    # Newton's cradle without strings: e = 1, no gravity, no friction; the striker stops, the last ball leaves
+    balls = "\n".join(f"  body b{i} sphere {{ radius 2 cm  material m  at ({0.04 * i}, 0, 0) m }}" for i in range(5))
+    text = scene("  body striker sphere { radius 2 cm  material m  at (-0.2, 0, 0) m  velocity (1, 0, 0) m/s }\n"
+                 + balls, end=0.5, gravity=0.0, material="density 7800 kg/m3  friction 0  restitution 1")
+    sim = finish(text, capture)
+    v = sim.state.y[:-1, 7]
+    m = sim.plan.mass
+    assert abs((m * v).sum() / (m[0] * 1.0) - 1) < 1e-9
+    assert abs(v[-1] - 1.0) < 0.01 and np.all(np.abs(v[:-1]) < 0.01), v
+
+
+BOX = "size (0.2, 0.2, 0.2) m  material m"
+
+
+@pytest.mark.parametrize("plan", PLANS)
+@pytest.mark.parametrize("offset, turn", [(0.02, 0), (0.07, 0), (0.0, 30), (0.12, 15)])
+def test_a_box_dropped_onto_a_box_lands_without_blowing_up_or_gaining_energy(plan, offset, turn):
+    bodies = (f"  body floor plane {{ material m }}\n  body lower box {{ {BOX}  at (0, 0.1, 0) m }}\n"
+              f"  body upper box {{ {BOX}  at ({offset}, 0.36, 0) m  orient (0, {turn}, 0) }}")
+    sim = finish(scene(bodies, plan, material="density 750 kg/m3  friction 0.5  restitution 0.3"))
+    report = sim.contact_report()
+    assert report["path"] == "capturing" and report["deepest"] < 1e-3
+    assert np.all(np.diff(sim.energies) <= 0.01 * (sim.energies[0] - sim.energies.min()) + 1e-9)
+    assert np.abs(sim.state.y[:-1, 7:13]).max() < 1e-3  # at rest
+    if offset + 0.1 < 0.1 + 0.1 * math.cos(math.radians(turn)) * 0.5:
+        assert abs(sim.state.y[sim.body("upper"), 1] - 0.3) < 1e-3  # it stays on top
+
+
+def heap(count: int, kind: str, plan: str = "dynamics") -> str:
+    walls = ("  body floor plane { material m }\n"
+             "  body wx0 plane { normal (1, 0, 0)  at (-0.35, 0, 0) m  material m }\n"
+             "  body wx1 plane { normal (-1, 0, 0)  at (0.35, 0, 0) m  material m }\n"
+             "  body wz0 plane { normal (0, 0, 1)  at (0, 0, -0.35) m  material m }\n"
+             "  body wz1 plane { normal (0, 0, -1)  at (0, 0, 0.35) m  material m }")
+    side = math.ceil(count ** (1 / 3))
+    shape = "sphere { radius 5 cm" if kind == "sphere" else "box { size (0.1, 0.1, 0.1) m"
+    lines = []
+    for k in range(count):
+        i, j, l = k % side, (k // side) % side, k // (side * side)
+        lines.append(f"  body p{k} {shape}  material m  at ({(i - side / 2) * 0.13 + 0.01 * l:.3f}, "
+                     f"{0.1 + 0.13 * l:.3f}, {(j - side / 2) * 0.13:.3f}) m }}")
+    return scene(walls + "\n" + "\n".join(lines), plan, end=2.0,
+                 material="density 1000 kg/m3  friction 0.5  restitution 0.3")
+
+
+@pytest.mark.parametrize("plan", PLANS)
+@pytest.mark.parametrize("kind", ["sphere", "box"])
+def test_a_heap_in_a_bin_settles_without_interpenetration(plan, kind):
+    sim = finish(heap(27, kind, plan))
+    report = sim.contact_report()
+    assert report["path"] == "capturing" and report["deepest"] < 1e-3, report
+    # a step's impulses may create a little (their sum lam (u- + u+) / 2 over the rows: 0.004 to 0.13 J in one to
+    # three steps of these heaps, of 21 J available); the scene's energy never rises over a frame
+    assert report["energy_created"] < 0.01 * sim.energies[0] and report["steps_creating_energy"] <= 5
+    E = sim.energies
+    assert np.all(np.diff(E) <= 0.01 * (E[0] - E.min()))
+    y = sim.state.y[:-1]
+    moving = sim.plan.dynamic[:len(y)]
+    assert np.all(y[moving, 1] > 0.045)  # every centre above the floor
+    if kind == "sphere":
+        x = y[moving, :3]
+        d = np.linalg.norm(x[:, None] - x[None], axis=2) + np.eye(len(x))
+        assert d.min() > 0.1 - 1e-3
+
+
+@pytest.mark.xfail(reason="projected Gauss-Seidel at 12 sweeps lets a stack of five boxes creep 1.2 mm in 2 s "
+                          "(a resting stack stays on the exact path, which holds it to 1e-15 m)", strict=True)
+def test_a_stack_stands_still_on_the_capturing_path():
+    boxes = "\n".join(f"  body b{i} box {{ {BOX}  at ({0.02 * i}, {0.1 + 0.2 * i}, 0) m }}" for i in range(5))
+    sim = Simulation.from_text(scene("  body floor plane { material m }\n" + boxes,
+                                     material="density 600 kg/m3  friction 0.6  restitution 0.2"))
+    start = sim.state.y[:-1, :3].copy()
+    sim.switch_to_capture("test")
+    sim.advance_to(2.0)
+    assert np.abs(sim.state.y[:-1, :3] - start).max() < 1e-4
+
+
+def test_the_report_says_which_path_and_why():
+    boxes = "\n".join(f"  body b{i} box {{ {BOX}  at ({0.02 * i}, {0.1 + 0.2 * i}, 0) m }}" for i in range(3))
+    sim = Simulation.from_text(scene("  body floor plane { material m }\n" + boxes))
+    assert sim.contact_report() == {"path": "exact", "why": "no impact between moving bodies"}
+    sim = Simulation.from_text(heap(30, "sphere"))
+    assert sim.contact_report()["why"] == "a heap: 30 moving bodies collide"
