@@ -197,7 +197,7 @@ def sliding_forces(act, cons, param, y, R, lam, local, out):
 
 
 @kernel
-def friction_impulses(act, cons, param, bodies, inv_inertia, y, R, lam, local, hs, dv, counters):
+def friction_impulses(act, cons, param, bodies, inv_inertia, y, R, lam, local, hs, dv):
     """The procedural plan's sliding friction, after a substep's velocities (its normal rows projected, lam the
     position multipliers: the normal impulse of the substep is lambda_n / hs): at each sliding contact, the
     impulse that takes the slip u away, at most mu lambda_n / hs,
@@ -205,8 +205,10 @@ def friction_impulses(act, cons, param, bodies, inv_inertia, y, R, lam, local, h
         p = min(mu lambda_n / hs, |u| / w),   w = sum over the bodies of 1/m + (r x e) . I^-1 (r x e),  e = u / |u|
 
     -p e on a at the contact point, +p e on b; all from the same velocities (dv (n+1,6) gathers the changes: no
-    contact's friction depends on the order of the others). A slip that turned back or came to rest stopped in
-    the substep: counters[COUNTER_TURNED_BACK] <- 1 + the instance."""
+    contact's friction depends on the order of the others). Returns whether any impulse was applied. The rows
+    must then see the change (procedural/project.py keep_rows, which turns away what the impulses would do
+    along the rows: a box's friction tipping it about the corners that hold it), before `stopped_slips` looks
+    for the slips they stopped."""
     for b in range(len(dv)):
         for d in range(6):
             dv[b, d] = 0.0
@@ -239,10 +241,21 @@ def friction_impulses(act, cons, param, bodies, inv_inertia, y, R, lam, local, h
             for d in range(3):
                 dv[body, d] += sign * p * bodies.inv_mass[body] * e[d]
                 dv[body, 3 + d] += turn[d]
+    applied = False
     for b in range(len(dv) - 1):
         for d in range(3):
+            if dv[b, d] != 0.0 or dv[b, 3 + d] != 0.0:
+                applied = True
             y[b, 7 + d] += dv[b, d]
             y[b, 10 + d] += dv[b, 3 + d]
+    return applied
+
+
+@kernel
+def stopped_slips(act, cons, param, y, R, counters):
+    """After a procedural substep's friction: a sliding contact whose slip turned back or came to rest stopped in
+    the substep: counters[COUNTER_TURNED_BACK] <- 1 + the first such instance (its pair sticks: the collision
+    stage's `on_stop`; the others are found at the next step's end)."""
     for i in range(len(act.instances)):
         k = act.instances[i]
         if cons.family[k] != M.CONTACT or param[k, M.CONTACT_SLIDE_MU] == 0.0:

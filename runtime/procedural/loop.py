@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 from ..core.bodies import copy_state, place_kinematic, rotations
-from ..core.contact import add_impulses, friction_impulses
+from ..core.contact import add_impulses, friction_impulses, stopped_slips
 from ..core.data import COUNTER_TURNED_BACK
 from ..core.forces import add_loads, add_springs, weights
 from ..core.jit import entry, kernel
@@ -22,7 +22,7 @@ from ..core.rest import rests, still_after, still_at_end, still_at_start
 from ..core.rows import apply_drivers
 from ..core.timetable import TIME
 from ..wind.kernels import wind_relax
-from .project import direct, start_directions, sweep
+from .project import direct, keep_rows, start_directions, sweep
 from .substep import SHAKE_MAX_TURN, predict, put_back
 
 
@@ -70,10 +70,16 @@ def procedural_step(m, act, sw, curves, s, y, table, j, h, substeps, iterations,
                 sweep(m, act, sw, curves, s, y, t, hs, shake, iterations)
         put_back(m, s, y, hs)
         if len(act.rows) and len(m.pairs.a):
-            # the normal impulse of the substep: lambda / hs; the sliding contacts' friction
+            # the sliding contacts' friction; the rows' share of it (a box's friction would tip it about the corners
+            # that hold it: they take the torque, as the dynamics plan's rows take its friction forces), only where
+            # all rows are projected at once (its factor serves); then the slips it stopped, and the normal
+            # impulse of the substep: lambda / hs
+            applied = friction_impulses(act, m.constraints, s.param, m.bodies, s.inv_inertia, y, s.R, s.lam,
+                                        act.local, hs, s.friction)
+            if applied and all_at_once:
+                keep_rows(m, act, s, y, hs)
+            stopped_slips(act, m.constraints, s.param, y, s.R, s.counters)
             add_impulses(act, m.constraints, s.lam, act.local, 1.0 / hs, s.impulse)
-            friction_impulses(act, m.constraints, s.param, m.bodies, s.inv_inertia, y, s.R, s.lam, act.local, hs,
-                              s.friction, s.counters)
     # forces = lambda / hs^2 (module docstring)
     for i in range(len(act.rows)):
         s.lam[i] /= hs * hs

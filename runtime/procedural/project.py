@@ -19,8 +19,8 @@ from collections import namedtuple
 from ..core.bodies import rotations, turn, world_inverse_inertia
 from ..core.data import COUNTER_KEPT
 from ..core.jit import kernel
-from ..core.rows import apply_drivers, instance_rows, write_rows
-from ..core.solve import assemble, factor, inverse_mass_times_J, move_along, substitute
+from ..core.rows import apply_drivers, instance_rows, row_motion, write_rows
+from ..core.solve import apply_impulses, assemble, factor, inverse_mass_times_J, move_along, substitute
 from ..core.vec import quat_to_matrix, rotate
 from .substep import MIN_ALIGNMENT, _effective_mass, _solve_small, velocity_row_error
 
@@ -200,6 +200,35 @@ def direct(m, act, curves, s, y, t, hs, iterations, shake):
         for i in range(len(act.rows)):
             s.lam[i] += s.dlam[i]
         move_along(act, m.constraints, m.bodies, s.MJ, s.dlam, s.delta, y, s.R)
+
+
+@kernel
+def keep_rows(m, act, s, y, hs):
+    """After the sliding contacts' friction impulses dv (s.friction (n+1,6), already in y's velocities): the rows'
+    answer to them, with the factor of this substep's `direct` projection: (Jd W Jd^T + alpha~) dlam = -hs Jd dv,
+    v += W Jd^T dlam / hs, lam += dlam. So the impulses move nothing along the rows: a box sliding on its four
+    corners is not left turning about them (its trailing corners rising at the step's end, where a look of the
+    collision stage would see them part and drop them), the rows' multipliers carry the torque (its trailing
+    corners press less: they lift once it tips) and a joint takes its share of a friction on its body."""
+    cons = m.constraints
+    n = len(act.rows)
+    if n == 0:
+        return
+    for i in range(n):
+        s.rhs[i] = -hs * row_motion(cons, act.rows[i], s.friction, s.friction, s.Jd, 0)
+    substitute(act, s.Lx, s.dropped, s.rhs, s.dlam)
+    for b in range(len(y)):
+        for c in range(6):
+            s.delta[b, c] = 0.0
+    apply_impulses(act, cons, s.MJ, s.dlam, 1.0 / hs, s.delta)
+    for b in range(len(y) - 1):
+        if not m.bodies.dynamic[b]:
+            continue
+        for c in range(3):
+            y[b, 7 + c] += s.delta[b, c]
+            y[b, 10 + c] += s.delta[b, 3 + c]
+    for i in range(n):
+        s.lam[i] += s.dlam[i]
 
 
 @kernel
