@@ -361,8 +361,10 @@ class Simulation:
             s.steps += taken
             s.t = t0 + done * h
             stopped = self._status[0] == CONTACT
-            # a stop for the collision stage ends the call before the frame of that step is recorded
-            self._deliver(frames, frame_step, taken - stopped, sink)
+            # a stop for the collision stage, or a body that ran away, ends the call before the frames of that step
+            # are recorded (core/record.py after_step): only the frames the kernel recorded go on (a frame buffer is
+            # zeros until recorded: a blow-up on a frame time once wrote a frame of zero positions and quaternions)
+            self._deliver(frames, frame_step, taken - (self._status[0] in (CONTACT, RUNAWAY_BODY)), sink)
             if self._status[0] not in (DONE, CONTACT):
                 raise self._failure()
             if stopped:  # the collision stage looks at the step that just ended

@@ -16,6 +16,8 @@ import math
 import numpy as np
 import pytest
 
+from isaac_lang.cli import main
+from isaac_lang.cli import main
 from isaac_runtime.simulation import Simulation
 
 G = 9.81
@@ -60,3 +62,56 @@ def test_a_block_stops_where_its_own_friction_says_whatever_moves_elsewhere(solv
     assert abs(sim.state.x[block, 1] - 0.05) <= 1e-9 and abs(sim.state.x[block, 2]) <= 1e-9
     if "ball" in others:  # (the ball rolled on all the while: the block's fix did not stop it)
         assert sim.state.v[sim.body("ball"), 0] == pytest.approx(1.0, rel=1e-6)
+
+
+# ---- a blow-up writes no frame it did not compute --------------------------------------------------------------
+
+# a body too fast from the start: it runs away in the first step, which ends on the frame at 10 ms
+TOO_FAST = """scene s {
+  time 0 s .. 0.1 s
+  frames 100 Hz
+  solver %s { step 10 ms }
+  body ball sphere { radius 5 cm  mass 1 kg  velocity (1e300, 0, 0) m/s }
+  body other sphere { radius 5 cm  mass 1 kg  at (0, 1, 0) }
+}
+"""
+
+# a stabilization far too stiff for its step, without the error control: it blows up in its first step, which ends
+# on the frame at 20 ms (tests/runtime/test_run.py BLOWS_UP, at 50 frames/s)
+TOO_STIFF = """scene bad {
+  time 0 s .. 5 s
+  frames 50 Hz
+  solver dynamics { step 20 ms  stabilize 200 Hz  tolerance 0 }
+  body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) }
+  constraint hang nail(bob @ (-0.9, 0, 0), (0, 0, 0))
+}
+"""
+
+SPINS_AWAY = """scene s {
+  time 0 s .. 0.1 s
+  frames 100 Hz
+  solver dynamics { step 10 ms }
+  body top box { size (10 cm, 10 cm, 10 cm)  mass 1 kg  spin (0, 3e6, 0) rad/s }
+}
+"""
+
+
+def _run(tmp_path, text: str, capsys) -> tuple:
+    scene = tmp_path / "s.isaac"
+    scene.write_text(text)
+    out = tmp_path / "out"
+    code = main(["run", str(scene), "--out", str(out), "--no-viewer", "-q"])
+    return code, capsys.readouterr().err, out, scene
+
+
+@pytest.mark.parametrize("text", [TOO_FAST % "dynamics", TOO_FAST % "procedural", TOO_STIFF],
+                         ids=["fast-dynamics", "fast-procedural", "stiff"])
+def test_a_blow_up_on_a_frame_writes_only_the_frames_it_computed(tmp_path, capsys, text):
+    code, err, out, _ = _run(tmp_path, text, capsys)
+    assert code == 2, err
+    with np.load(out / "trajectory.npz") as data:
+        q = data["orientation"]
+        # the outputs of a blow-up are kept (docs/outputs.md), with the frames before it: here the first only
+        assert len(data["time"]) == 1 and data["time"][0] == 0.0
+        assert np.allclose(np.linalg.norm(q, axis=-1), 1.0)  # no frame of zero quaternions
+        assert np.all(np.isfinite(data["position"]))
