@@ -325,8 +325,9 @@ class Watch:
         report = result.report
         self.say_warnings(report.get("warnings", []), job.sources)  # the plan's and the run's
         if failed:
-            self.say(f"result #{job.n}: error: {failed}; the trajectory up to the blow-up is shown "
-                     f"(try a smaller step or --solver procedural)")
+            hint = getattr(result.error, "hint", None)
+            self.say(f"result #{job.n}: error: {failed}; the trajectory up to the blow-up is shown"
+                     + (f" ({hint})" if hint else ""))
         else:
             self.say(f"result #{job.n}: complete {latency:.2f} s after the save (first frames after "
                      f"{job.first_latency:.2f} s); {report['frames']} frames, max constraint error "

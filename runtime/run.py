@@ -149,9 +149,8 @@ def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path 
     warnings = _say_warnings(where, result.report["warnings"], options)
     if result.error is not None:
         _say_error(where, f"{result.error}", result.error.source, (
-            f"try a smaller step (`solver dynamics {{ step 0.5 ms }}` or --step), a lower stabilization frequency, "
-            f"or the procedural solver (--solver procedural); the trajectory up to t = {result.error.time:.6g} s "
-            f"is in {out / 'trajectory.npz'}"))
+            f"{result.error.hint + '; ' if result.error.hint else ''}the trajectory up to t = "
+            f"{result.error.time:.6g} s is in {out / 'trajectory.npz'}"))
         return EXIT_SCENE
     _say_summary(scene, result.report, out, written, options)
     if _broken_tolerance(where, result.report):

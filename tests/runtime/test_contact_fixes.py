@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 
 from isaac_lang.cli import main
-from isaac_lang.cli import main
 from isaac_runtime.simulation import Simulation
 
 G = 9.81
@@ -115,3 +114,46 @@ def test_a_blow_up_on_a_frame_writes_only_the_frames_it_computed(tmp_path, capsy
         assert len(data["time"]) == 1 and data["time"][0] == 0.0
         assert np.allclose(np.linalg.norm(q, axis=-1), 1.0)  # no frame of zero quaternions
         assert np.all(np.isfinite(data["position"]))
+
+
+# ---- a blow-up says what it measured -------------------------------------------------------------------------
+
+
+def test_a_runaway_speed_is_said_in_m_per_s_with_a_hint_from_the_start(tmp_path, capsys):
+    code, err, _, scene = _run(tmp_path, TOO_FAST % "dynamics", capsys)
+    assert code == 2
+    first, hint = err.strip().splitlines()[:2]
+    assert first.startswith(f"{scene}:5:3: error: numerical blow-up at t = 0.01 s (step 1): body `ball`"), first
+    assert "its speed passed 1e+06 m/s (|v| = 1e+300 m/s)" in first
+    assert hint.startswith("hint: `ball` starts at |v| = 1e+300 m/s") and "slower `velocity`" in hint, hint
+    assert "smaller step" not in err and "procedural" not in err
+
+
+def test_a_runaway_spin_is_said_in_rad_per_s(tmp_path, capsys):
+    code, err, _, scene = _run(tmp_path, SPINS_AWAY, capsys)
+    assert code == 2
+    first, hint = err.strip().splitlines()[:2]
+    assert first.startswith(f"{scene}:5:3: error: numerical blow-up at t = "), first
+    assert "body `top`" in first and "its angular speed passed 1e+06 rad/s (|w| = " in first, first
+    assert "m/s" not in first and "`spin`" in hint, hint
+
+
+def test_a_stabilization_too_stiff_for_the_step_is_measured_and_named(tmp_path, capsys):
+    code, err, _, scene = _run(tmp_path, TOO_STIFF, capsys)
+    assert code == 2
+    first, hint = err.strip().splitlines()[:2]
+    assert first.startswith(f"{scene}:5:3: error: numerical blow-up at t = 0.02 s (step 1): body `bob`"), first
+    assert "m/s" in first and "acting on it: constraint `hang`" in first, first
+    # omega = 2 pi 200 Hz = 1257 rad/s; omega h = 25 at 20 ms, beyond the 2 RK4 holds: 15 Hz or a 1.5 ms step
+    assert "constraint `hang` assembles at 200 Hz (omega = 1.26e+03 rad/s): omega h = 25.1 at the 20 ms step" in hint
+    assert "`tolerance 0`" in hint and "`stabilize 15 Hz` or less" in hint and "1.5 ms or less" in hint, hint
+    assert "smaller step" not in hint and "procedural" not in hint
+
+
+@pytest.mark.parametrize("change", [("stabilize 200 Hz", "stabilize 15 Hz"), ("step 20 ms", "step 1.5 ms")])
+def test_what_the_stiffness_hint_says_runs(change):
+    from isaac_lang.load import load_text
+    from isaac_runtime.run import simulate
+
+    result = simulate(load_text(TOO_STIFF.replace(*change)).scene)
+    assert result.error is None and result.report["max_constraint_error"] <= 0.1 + 1e-9
