@@ -49,7 +49,7 @@ COUNTS = {"steps": "steps", "work": "body-steps", "substeps": "substeps", "itera
           "each other at the start", "memory": "bytes of arrays"}
 # a step shorter than this fraction of the largest time is below the clock's resolution (a double has 16 digits)
 CLOCK_RESOLUTION = 1e-12
-# a pair of bodies counts as inside each other when their bounding spheres overlap by this fraction of the smaller
+# a pair of bodies counts as inside each other when the spheres they hold overlap by this fraction of the smaller
 OVERLAP_FRACTION = 0.1
 _SIZE = re.compile(r"^\s*([0-9.eE+-]+)\s*([kMGT]i?B|B)?\s*$")
 _UNITS = {None: 1, "B": 1, "kB": 1e3, "MB": 1e6, "GB": 1e9, "TB": 1e12, "kiB": 2**10, "KiB": 2**10,
@@ -202,16 +202,16 @@ def _check_clock(scene, step: float, start: float, end: float, step_reason: str)
 
 
 def _check_overlaps(scene, limit: float) -> None:
-    """Pairs of collidable bodies deep inside each other at the start (bounding spheres overlapping by more
-    than OVERLAP_FRACTION of the smaller): each pair is a contact from the first step on, and a heap of them is
+    """Pairs of collidable bodies deep inside each other at the start (the spheres each shape holds, `_CORE`,
+    overlapping by more than OVERLAP_FRACTION of the smaller): each pair is a contact from the first step on, and a heap of them is
     one contact island whose dense matrices grow as the square of their number."""
-    chosen = [b for b in scene.bodies if b.collide and b.shape.type in _REACH]
+    chosen = [b for b in scene.bodies if b.collide and b.shape.type in _CORE]
     if len(chosen) < 2 or not math.isfinite(limit):
         return
     centres = np.array([_start_position(b, scene.time.start) for b in chosen])
-    reach = np.array([_REACH[b.shape.type](b.shape) for b in chosen])
+    core = np.array([_CORE[b.shape.type](b.shape) for b in chosen])
     axis = int(np.argmax(np.ptp(centres, axis=0)))  # sweep along the axis the bodies spread most along
-    lo, hi = centres[:, axis] - reach, centres[:, axis] + reach
+    lo, hi = centres[:, axis] - core, centres[:, axis] + core
     order = np.argsort(lo)
     lo_sorted = lo[order]
     count, first = 0, None
@@ -219,8 +219,8 @@ def _check_overlaps(scene, limit: float) -> None:
         near = order[k + 1:np.searchsorted(lo_sorted, hi[i], side="right")]
         if not len(near):
             continue
-        depth = reach[i] + reach[near] - np.linalg.norm(centres[near] - centres[i], axis=1)
-        inside = near[depth > OVERLAP_FRACTION * np.minimum(reach[i], reach[near])]
+        depth = core[i] + core[near] - np.linalg.norm(centres[near] - centres[i], axis=1)
+        inside = near[depth > OVERLAP_FRACTION * np.minimum(core[i], core[near])]
         if len(inside):
             count += len(inside)
             first = first or (chosen[i], chosen[int(inside[0])])
@@ -242,9 +242,11 @@ def _start_position(body, t: float):
 
 
 # how far the farthest point of a shape is from its centre
-_REACH = {
+# the radius of the sphere about a shape's centre that the shape holds: two of them overlapping means the shapes
+# surely do (bounding spheres counted 10 cm cubes 13 cm apart, which do not touch, as inside each other)
+_CORE = {
     "sphere": lambda s: s.radius,
-    "box": lambda s: 0.5 * math.sqrt(sum(x * x for x in s.size)),
-    "capsule": lambda s: s.radius + 0.5 * s.length,
-    "cylinder": lambda s: math.hypot(s.radius, 0.5 * s.length),
+    "box": lambda s: 0.5 * min(s.size),
+    "capsule": lambda s: s.radius,
+    "cylinder": lambda s: min(s.radius, 0.5 * s.length),
 }

@@ -126,7 +126,7 @@ class Simulation:
         self._last_delivered = None  # (time, packed state) of the last frame handed on (likewise)
         # collisions (runtime.collide): contact rows in the step, impacts and changes of contact when it stops;
         # built only when the plan has them
-        self.collider = plan.collisions.start(self) if plan.collisions is not None else None
+        self.collider = None  # (built below, once the bodies are placed: _start_contacts)
         # observers called after every step (the kernel then takes one step per call: a probe, a test's oracle)
         self.observers: list = []
         # tracers (add_tracer): the audio stage's recorder, handed the motion of its bodies at every step after each
@@ -135,10 +135,8 @@ class Simulation:
         self._traced = np.zeros(0, np.int64)  # their bodies, one after another (Frames.traced)
         self._follow_paths()
         self._place_kinematic()
-        if self.collider is not None:
-            self._active()
-            self.collider.start()
-            self._choose_contact_path()
+        if plan.collisions is not None:
+            self._start_contacts()
 
     # -- construction -------------------------------------------------------------------------------------
 
@@ -397,6 +395,8 @@ class Simulation:
                 raise self._failure()
             if stopped:  # the collision stage looks at the step that just ended
                 self.collider.on_stop(int(self._status[3]), int(self._status[2]), h, self._epoch(s.t - 0.5 * h))
+                if getattr(self.collider, "wants_capture", None) is None:
+                    self._count_look()
                 if getattr(self.collider, "wants_capture", None):
                     self.switch_to_capture(self.collider.wants_capture, t0 + done * h)
                 self._active()
@@ -515,16 +515,33 @@ class Simulation:
 
     # -- the contact path -----------------------------------------------------------------------------------
 
-    def _choose_contact_path(self) -> None:
-        """A heap starts on the capturing path (runtime/capture); other scenes stay on the exact one until the
-        collision stage asks to change (an impact between two moving bodies: `collider.wants_capture`)."""
+    def _start_contacts(self) -> None:
+        """A heap starts on the capturing path (runtime/capture); other scenes on the exact one (runtime/collide),
+        until it asks to change: an impact between two moving bodies (`collider.wants_capture`), or, with joints,
+        contacts that change at most steps (`_count_look`)."""
         from . import capture
 
-        self.capture_refused = capture.eligible(self.plan)
-        self.collider.may_capture = self.capture_refused is None
-        if self.capture_refused is None and capture.crowded(self.plan):
-            n = int(np.count_nonzero(self.plan.dynamic[self.plan.collisions.collidable]))
+        plan = self.plan
+        self.capture_refused = capture.eligible(plan)
+        self._looks = [] if self.capture_refused is None else None  # the steps at which the exact path looked
+        if self.capture_refused is None and capture.crowded(plan):
+            n = int(np.count_nonzero(plan.dynamic[plan.collisions.collidable]))
             self.switch_to_capture(f"a heap: {n} moving bodies collide")
+            return
+        self.collider = plan.collisions.start(self)
+        self.collider.may_capture = self.capture_refused is None and not capture.jointed(plan)
+        self._active()
+        self.collider.start()
+
+    def _count_look(self) -> None:
+        """A look of the exact path: LOOKS of them within STEPS steps ask for the capturing path."""
+        from .capture import LOOKS, STEPS
+
+        if self._looks is None:
+            return
+        self._looks = self._looks[-(LOOKS - 1):] + [self.state.steps]
+        if len(self._looks) == LOOKS and self._looks[-1] - self._looks[0] < STEPS:
+            self.collider.wants_capture = f"the contacts changed {LOOKS} times within {STEPS} steps"
 
     def switch_to_capture(self, why: str, t_end: float | None = None) -> None:
         """From now on contacts are solved in the capturing loop (runtime/capture), which keeps them itself; the
@@ -550,7 +567,11 @@ class Simulation:
         report = getattr(self.collider, "report", None)
         if report is not None:
             return report()
-        return {"path": "exact", "why": (self.capture_refused or "no impact between moving bodies")}
+        from .capture import LOOKS, STEPS, jointed
+
+        quiet = (f"its contacts never changed {LOOKS} times within {STEPS} steps" if jointed(self.plan)
+                 else "no impact between moving bodies")
+        return {"path": "exact", "why": self.capture_refused or quiet}
 
     def _place_kinematic(self) -> None:
         kin = self.compiled.model.kinematic

@@ -20,6 +20,8 @@ from .loop import BOUNCE_SPEED, DRAIN, GROW, run
 
 # a scene starts on the capturing path when it has at least this many moving bodies that collide (a heap)
 CROWD = 24
+# a scene with joints takes it when the exact path looked at its contacts LOOKS times within STEPS steps
+LOOKS, STEPS = 20, 50
 # the arrays of Frames with one entry per frame (core/record.py)
 _PER_FRAME = ("y", "energy", "error", "worst", "contact")
 # an interpenetration deeper than this is counted as a failure of the step (m)
@@ -28,7 +30,7 @@ DEPTH_LIMIT = 1e-3
 
 def eligible(plan) -> str | None:
     """Why the scene cannot take the capturing path, or None when it can: every collidable shape has a compiled
-    closed form, and there are no joints (the exact path solves them; docs/collisions.md says what is left)."""
+    closed form (no compound bodies, no meshes)."""
     from .narrow import closed_form
 
     cp = plan.collisions
@@ -42,9 +44,13 @@ def eligible(plan) -> str | None:
         for kb in sorted(kinds):
             if not closed_form(ka, kb):
                 return "a pair without a compiled closed form"
-    if plan.constraints is not None and len(plan.constraints.row_bodies):
-        return "joints (solved by the exact path only)"
     return None
+
+
+def jointed(plan) -> bool:
+    """Whether the scene has joints: then it takes the capturing path only when its contacts change at most steps
+    (a cradle's few strikes stay exact), not at its first impact between moving bodies."""
+    return plan.constraints is not None and len(plan.constraints.row_bodies) > 0
 
 
 def crowded(plan) -> bool:
@@ -82,6 +88,7 @@ class CaptureStage:
         self.sweep = D.sweep(order, planes, n, cp.always_excluded, 8 * len(order) + 64)
         self.contacts = D.contacts(8 * len(order) + 64)
         self.checks = D.checks()
+        self.joints = D.joint_rows(len(sim.compiled.model.constraints.row_instance))
         self.events = D.events(8192)
         self.pseudo = np.zeros((n + 1, 13))
         self.materials = D.Materials(*_materials(cp, n))
@@ -184,7 +191,7 @@ class CaptureStepper:
         while True:
             later = frame_at[first:] - done
             part = frames._replace(**{name: getattr(frames, name)[first:] for name in _PER_FRAME})
-            taken = self._run(c.model, act, c.scratch, st.contacts, st.sweep, st.checks, st.events, st.pseudo,
+            taken = self._run(c.model, act, c.scratch, st.contacts, st.sweep, st.joints, st.checks, st.events, st.pseudo,
                               st.materials, y, table[done * self.grid:], hs, total - done, self.grid, later, part,
                               status, self.resting, DEPTH_LIMIT, self.energy_tol)
             st.drain()

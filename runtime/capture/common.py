@@ -123,3 +123,30 @@ def perpendicular(axis):
     """A unit vector across axis: axis x UP, or axis x X when axis is near UP."""
     other = UP if abs(dot3(axis, UP)) < 0.9 else (1.0, 0.0, 0.0)
     return unit3(cross3(axis, other))[0]
+
+
+@kernel
+def segment_segment(p1, q1, p2, q2):
+    """Closest points p1 + s d1, p2 + t d2 of two segments (Ericson, Real-Time Collision Detection 5.1.9):
+    s = (b f - c e) / (a e - b^2), t = (b s + f) / e, each clamped and the other recomputed."""
+    d1, d2, r = sub3(q1, p1), sub3(q2, p2), sub3(p1, p2)
+    a, e, f = dot3(d1, d1), dot3(d2, d2), dot3(d2, r)
+    s, t = 0.0, 0.0
+    if a <= 1e-24 and e <= 1e-24:
+        return p1, p2
+    if a <= 1e-24:
+        t = clamp(f / e, 0.0, 1.0)
+    else:
+        c = dot3(d1, r)
+        if e <= 1e-24:
+            s = clamp(-c / a, 0.0, 1.0)
+        else:
+            b = dot3(d1, d2)
+            denom = a * e - b * b
+            s = clamp((b * f - c * e) / denom, 0.0, 1.0) if denom > 1e-24 else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                s, t = clamp(-c / a, 0.0, 1.0), 0.0
+            elif t > 1.0:
+                s, t = clamp((b - c) / a, 0.0, 1.0), 1.0
+    return add3(p1, scale3(s, d1)), add3(p2, scale3(t, d2))

@@ -7,7 +7,8 @@ the Python side when a step finds more than they hold (the step is then taken ag
                feature (C,) which features made it; key (C,) pair key * FEATURES + feature (warm starting);
                t1, t2 (C,3) tangents; ra, rb (C,3) arms from the centres of mass; mass (C,3) effective masses of
                the normal and tangent rows; mu, bounce (C,) friction and the normal speed restitution asks for
-               (m/s); e (C,) the pair's restitution; base (C,) hit before this generation; hit (C,) the normal impulse of its impact (N s); lam (C,3) impulses (N s) of the normal and tangent rows; push (C,) the position pass's
+               (m/s); e (C,) the pair's restitution; base (C,) hit before this generation; approach (C,) the fastest
+               it approached when struck (m/s; 0: no impact); hit (C,) the normal impulse of its impact (N s); lam (C,3) impulses (N s) of the normal and tangent rows; push (C,) the position pass's
                impulse; before (C,3) the rows' relative velocities before the solve; acc (C,) normal impulse
                since the last frame; old_key (C,), old_lam (C,3), old_acc (C,) the last step's, sorted by key
     Sweep      order (c,) the collidable bodies that are not planes, sorted by their boxes' low x; planes (p,);
@@ -29,9 +30,11 @@ import numpy as np
 FEATURES = 1 << 24
 
 Contacts = namedtuple("Contacts", "count a b point normal depth feature key t1 t2 ra rb mass mu bounce lam push "
-                                  "before acc old_key old_lam old_acc hit e base")
+                                  "before acc old_key old_lam old_acc hit e base approach")
 Sweep = namedtuple("Sweep", "order planes box excluded pairs count work")
 Checks = namedtuple("Checks", "worst counts")
+# the joints' rows (joints.py), by global row: lam (M,) impulse of the last step, mass (M,), target (M,) velocity
+JointRows = namedtuple("JointRows", "lam mass target")
 # events the step writes: one row per pair and impact, or per pair pressing at a frame
 # [time, kind (0 impact, 1 contact), a, b, point (3), normal (3), impulse, tangential speed, normal speed]
 EVENT_WIDTH = 13
@@ -46,7 +49,7 @@ def contacts(capacity: int) -> Contacts:
     c = max(int(capacity), 16)
     f, v, i = (lambda: np.zeros(c)), (lambda: np.zeros((c, 3))), (lambda: np.zeros(c, np.int64))
     return Contacts(np.zeros(4, np.int64), i(), i(), v(), v(), f(), i(), i(), v(), v(), v(), v(), v(), f(), f(), v(),
-                    f(), v(), f(), i(), v(), f(), f(), f(), f())
+                    f(), v(), f(), i(), v(), f(), f(), f(), f(), f())
 
 
 def grown(old: Contacts, capacity: int) -> Contacts:
@@ -62,6 +65,11 @@ def sweep(order, planes, n: int, excluded, capacity: int) -> Sweep:
     return Sweep(np.ascontiguousarray(order, np.int64), np.ascontiguousarray(planes, np.int64), np.zeros((n + 1, 6)),
                  np.ascontiguousarray(np.sort(excluded), np.int64), np.zeros((max(int(capacity), 16), 2), np.int64),
                  np.zeros(1, np.int64), np.zeros((16, 4)))
+
+
+def joint_rows(rows: int) -> JointRows:
+    m = max(int(rows), 1)
+    return JointRows(np.zeros(m), np.zeros(m), np.zeros(m))
 
 
 def checks() -> Checks:

@@ -4,7 +4,8 @@ forces, so contacts that appear, part, stick or slide never leave the loop (PHYS
     1. forces at the step's start; v- = v + h F / m, w- = w + h I^-1 tau       (kick)
     2. broad phase (broad.py), narrow phase of every candidate pair (narrow.py), with the gap each pair can close
        in the step (speculative contacts: nothing tunnels while it moves less than the margin it was given)
-    3. the contact solve (solve.py): impulses so that v+ meets the contacts, restitution and friction, warm-started
+    3. the contact solve (solve.py): impacts in generations, then impulses so that v+ meets the contacts (friction
+       included) and the joints' rows (joints.py), one Gauss-Seidel sweep over both after another, warm-started
     4. x += h v+; the free rotation of w+ over h (energy-keeping, procedural/substep.py); the position pass's
        pseudo-velocities move the positions only                              (drift)
     5. checks: interpenetration beyond the limit, energy created by the contacts (counted, the worst kept with
@@ -19,14 +20,16 @@ import math
 
 from ..core.bodies import copy_state, energy, place_kinematic, rotations, runaway_body, turn, world_inverse_inertia
 from ..core.jit import entry, kernel
-from ..core.record import DONE, RUNAWAY_BODY, trace_step
+from ..core.record import DONE, RUNAWAY_BODY, RUNAWAY_CONSTRAINT_ERROR, RUNAWAY_ROW, constraint_error, trace_step
+from ..core.rows import evaluate_rows
 from ..core.timetable import TIME
 from ..procedural.loop import step_forces
 from ..procedural.substep import _free_rotation
 from .broad import find_pairs, travel
 from .data import EVENT_WIDTH, IMPACT, PRESSING
 from .narrow import pair_contacts
-from .solve import impacts, iterate, prepare, separate, work
+from .joints import close_joints, prepare_joints, sweep_joints
+from .solve import POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, prepare, separate, sweep, work
 
 GROW, DRAIN = 4, 5
 # an approach slower than this does not bounce (m/s): the speed of a fall through 0.13 mm, what a body resting on a
@@ -135,10 +138,11 @@ def _pair_events(ct, ev, t, h, resting, pressing):
                 p = ct.acc[i]
                 ct.acc[i] = 0.0
             else:
-                p = ct.hit[i]
+                p = ct.hit[i] if ct.approach[i] > 0.0 else 0.0  # (struck, approaching faster than resting)
                 if p > 0.0:
-                    soonest = min(soonest, max(0.0, -ct.depth[i]) / -un)
-                    approach = max(approach, -un)
+                    # the time its gap closed within the step, at the speed it approached when struck
+                    soonest = min(soonest, max(0.0, -ct.depth[i]) / ct.approach[i])
+                    approach = max(approach, ct.approach[i])
                     slip = max(slip, math.sqrt(ct.before[i, 1] ** 2 + ct.before[i, 2] ** 2))
             if p <= 0.0:
                 continue
@@ -187,7 +191,7 @@ def _drift(m, s, y, pseudo, moved, h):
 
 
 @kernel
-def capture_step(m, s, ct, sw, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit, energy_tol):
+def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit, energy_tol):
     """One step of h from grid row j (module docstring). Returns False when the buffers were too small (y is then
     as it was at the step's start)."""
     t = table[j, TIME]
@@ -207,13 +211,27 @@ def capture_step(m, s, ct, sw, chk, ev, pseudo, mats, y, table, j, grid, h, rest
     ct.count[0] = found
     n = len(y) - 1
     prepare(m.bodies, s.inv_inertia, ct, y, n, h, resting)
+    jointed = len(act.rows) > 0
+    if jointed:
+        evaluate_rows(m, act, s, y, table, j)
+        prepare_joints(m, act, s, s.inv_inertia, jt, y, h)
     impacts(m.bodies, s.inv_inertia, ct, y, h, resting)
-    iterate(m.bodies, s.inv_inertia, ct, y)
+    for _ in range(VELOCITY_SWEEPS):
+        if jointed:
+            sweep_joints(m, act, s, s.inv_inertia, jt, y)
+        sweep(m.bodies, s.inv_inertia, ct, y)
     _check(ct, chk, y, t, depth_limit, energy_tol)
     for c in range(found):
         ct.acc[c] += ct.lam[c, 0] + ct.hit[c]
     _pair_events(ct, ev, t, h, resting, False)
-    moved = separate(m.bodies, s.inv_inertia, ct, pseudo, h)
+    # the position pass: contacts deeper than the slop apart, the joints' errors closed, positions only
+    moved = jointed or deep(ct)
+    if moved:
+        clear(pseudo, ct)
+        for _ in range(POSITION_SWEEPS):
+            if jointed:
+                close_joints(m, act, s, s.inv_inertia, jt, pseudo)
+            separate(m.bodies, s.inv_inertia, ct, pseudo, h)
     _drift(m, s, y, pseudo, moved, h)
     place_kinematic(m.kinematic, table, j + grid, y)
     _keep_old(ct)
@@ -221,27 +239,27 @@ def capture_step(m, s, ct, sw, chk, ev, pseudo, mats, y, table, j, grid, h, rest
 
 
 @kernel
-def _record(m, s, y, frames, f):
-    """Frame f: the state and its energy (no joints on this path: no constraint error)."""
+def _record(m, act, s, y, table, j, frames, f):
+    """Frame f: the state, its energy and the largest error of the active joint rows."""
     copy_state(y, frames.y[f])
     rotations(y, s.R)
     frames.energy[f] = energy(m.bodies, s.R, y)
-    frames.error[f], frames.worst[f] = 0.0, -1
+    frames.error[f], frames.worst[f] = constraint_error(m, act, s, y, table, j)
 
 
 @entry
-def run(m, act, s, ct, sw, chk, ev, pseudo, mats, y, table, h, steps, grid, frame_step, frames, status, resting,
+def run(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, h, steps, grid, frame_step, frames, status, resting,
         depth_limit, energy_tol):
     """Advance y by `steps` steps of h (module docstring); frames recorded at frame_step (steps counted from the
     call's start, 0: before the first). Returns the steps taken; status (4,) <- (code, step, body, 0)."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
-        _record(m, s, y, frames, f)
+        _record(m, act, s, y, table, 0, frames, f)
         f += 1
     for step in range(steps):
         j = grid * step
-        if not capture_step(m, s, ct, sw, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit,
+        if not capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit,
                             energy_tol):
             status[0], status[1] = GROW, step
             return step
@@ -251,7 +269,10 @@ def run(m, act, s, ct, sw, chk, ev, pseudo, mats, y, table, h, steps, grid, fram
             status[0], status[1], status[2] = RUNAWAY_BODY, step + 1, body
             return step + 1
         while f < len(frame_step) and frame_step[f] == step + 1:
-            _record(m, s, y, frames, f)
+            _record(m, act, s, y, table, j + grid, frames, f)
+            if not frames.error[f] <= RUNAWAY_CONSTRAINT_ERROR:
+                status[0], status[1], status[2] = RUNAWAY_ROW, step + 1, frames.worst[f]
+                return step + 1
             _pair_events(ct, ev, table[j + grid, TIME], h, resting, True)
             for c in range(ct.count[2]):
                 ct.old_acc[c] = 0.0  # (every pressing pair's impulse was handed on: the next frame counts anew)

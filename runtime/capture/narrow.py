@@ -12,14 +12,15 @@ Contact k of the pair goes to slot first + k of
     normal (C,3)   unit, from b toward a: an impulse +j n on a and -j n on b pushes them apart
     depth (C,)     penetration, m (negative: a gap)
     feature (C,)   int64, which feature made the point: the same while the same features touch, unique in the pair
-                   (a box's corner; a capsule's end 0, 1, its nearest axis point 2; a clipped vertex: boxes.py)
+                   (a box's corner; a capsule's end 0, 1, its nearest axis point 2; a clipped vertex: boxes.py;
+                   a rim point, clipped line end or box corner of a cylinder on a box: cylinders.py)
 
 keeping the points with depth >= -margin (margin = inf: every test writes at least its closest feature, so
 -max(depth) is the pair's signed distance). Nothing is written at or past capacity; the count returned is the
 whole count, so first + count > capacity tells the caller to grow its buffers and call again.
 work (16,4) float64 is scratch for the box-box clipping (boxes.py); its contents on return mean nothing.
-Pairs without a closed form here (meshes, cylinder against box, capsule or cylinder, two planes) give 0:
-`closed_form` says which pairs are handled.
+Pairs without a closed form here (meshes, cylinder against capsule or cylinder, two planes) give 0:
+`closed_form` says which pairs are handled (cylinder-box too, which the Python phase leaves to fcl).
 """
 from __future__ import annotations
 
@@ -29,7 +30,9 @@ from ..core.jit import kernel
 from ..core.model import SHAPE_BOX, SHAPE_CAPSULE, SHAPE_CYLINDER, SHAPE_PLANE, SHAPE_SPHERE
 from ..core.vec import add3, cross3, dot3, norm3, rotate, rotate_t, row3, scale3, sub3
 from .boxes import box_box, box_plane, capsule_box, sphere_box
-from .common import clamp, closest_on_segment, col3, emit, flip, perpendicular, plane_of, segment, spheres, unit3
+from .common import (clamp, closest_on_segment, col3, emit, flip, perpendicular, plane_of, segment, segment_segment,
+                     spheres, unit3)
+from .cylinders import cylinder_box
 
 # cosines closer to 1 than this count as parallel segments (a capsule lying along another: two points)
 PARALLEL_COS = 1.0 - 1e-6
@@ -113,33 +116,6 @@ def capsule_capsule(shapes, a, b, y, R, sink):
 
 
 @kernel
-def segment_segment(p1, q1, p2, q2):
-    """Closest points p1 + s d1, p2 + t d2 of two segments (Ericson, Real-Time Collision Detection 5.1.9):
-    s = (b f - c e) / (a e - b^2), t = (b s + f) / e, each clamped and the other recomputed."""
-    d1, d2, r = sub3(q1, p1), sub3(q2, p2), sub3(p1, p2)
-    a, e, f = dot3(d1, d1), dot3(d2, d2), dot3(d2, r)
-    s, t = 0.0, 0.0
-    if a <= 1e-24 and e <= 1e-24:
-        return p1, p2
-    if a <= 1e-24:
-        t = clamp(f / e, 0.0, 1.0)
-    else:
-        c = dot3(d1, r)
-        if e <= 1e-24:
-            s = clamp(-c / a, 0.0, 1.0)
-        else:
-            b = dot3(d1, d2)
-            denom = a * e - b * b
-            s = clamp((b * f - c * e) / denom, 0.0, 1.0) if denom > 1e-24 else 0.0
-            t = (b * s + f) / e
-            if t < 0.0:
-                s, t = clamp(-c / a, 0.0, 1.0), 0.0
-            elif t > 1.0:
-                s, t = clamp((b - c) / a, 0.0, 1.0), 1.0
-    return add3(p1, scale3(s, d1)), add3(p2, scale3(t, d2))
-
-
-@kernel
 def capsule_plane(shapes, a, b, y, R, sink):
     """Each end sphere against the plane (features 0, 1): a capsule lying flat rests on two points."""
     n, p0 = plane_of(shapes, b, y, R)
@@ -205,8 +181,11 @@ def ordered(shapes, ka, kb, a, b, y, R, sink, work):
             return capsule_plane(shapes, a, b, y, R, sink)
         if kb == SHAPE_BOX:
             return capsule_box(shapes, a, b, y, R, sink)
-    elif ka == SHAPE_CYLINDER and kb == SHAPE_PLANE:
-        return cylinder_plane(shapes, a, b, y, R, sink)
+    elif ka == SHAPE_CYLINDER:
+        if kb == SHAPE_PLANE:
+            return cylinder_plane(shapes, a, b, y, R, sink)
+        if kb == SHAPE_BOX:
+            return cylinder_box(shapes, a, b, y, R, sink)
     return -1
 
 
@@ -228,7 +207,7 @@ def pair_contacts(shapes, a, b, y, R, margin, point, normal, depth, feature, fir
 
 _HANDLED = {(SHAPE_SPHERE, k) for k in (SHAPE_SPHERE, SHAPE_PLANE, SHAPE_BOX, SHAPE_CAPSULE, SHAPE_CYLINDER)} | {
     (SHAPE_BOX, SHAPE_BOX), (SHAPE_BOX, SHAPE_PLANE), (SHAPE_CAPSULE, SHAPE_CAPSULE), (SHAPE_CAPSULE, SHAPE_PLANE),
-    (SHAPE_CAPSULE, SHAPE_BOX), (SHAPE_CYLINDER, SHAPE_PLANE)}
+    (SHAPE_CAPSULE, SHAPE_BOX), (SHAPE_CYLINDER, SHAPE_PLANE), (SHAPE_CYLINDER, SHAPE_BOX)}
 
 
 def closed_form(kind_a: int, kind_b: int) -> bool:

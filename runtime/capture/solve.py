@@ -38,7 +38,7 @@ from .data import FEATURES
 IMPACT_SWEEPS = 64
 PAIR_SWEEPS = 16
 # velocity sweeps (warm-started) and position sweeps per step
-VELOCITY_SWEEPS = 12
+VELOCITY_SWEEPS = 16
 POSITION_SWEEPS = 6
 # interpenetration left alone (m), and the fraction of the rest removed per step by the position pass
 SLOP = 1e-4
@@ -140,7 +140,7 @@ def prepare(bodies, invI, ct, y, n, h, resting):
         un = relative(y, a, b, ra, rb, nrm)
         ct.before[c, 0], ct.before[c, 1], ct.before[c, 2] = un, relative(y, a, b, ra, rb, t1), relative(y, a, b, ra, rb, t2)
         gap = -ct.depth[c]
-        ct.hit[c] = 0.0
+        ct.hit[c], ct.approach[c] = 0.0, 0.0
         ct.push[c] = max(gap, 0.0)  # (the gap, until `impacts` sets the targets)
         ct.key[c] = (a * n + b) * FEATURES + ct.feature[c]
     # the warm start after every contact's velocities before were measured (they are the step's own)
@@ -169,6 +169,8 @@ def _strike(bodies, invI, ct, y, first, end, h, resting):
         # its target u+ = -e u- (ct.bounce), or -1: not in this generation
         ct.bounce[c] = -ct.e[c] * u if (u < 0.0 and closes) else -1.0
         ct.base[c] = ct.hit[c]
+        if u < -resting and closes:
+            ct.approach[c] = max(ct.approach[c], -u)
     if not approaching:
         return False
     for _ in range(PAIR_SWEEPS):
@@ -224,45 +226,52 @@ def _friction(bodies, invI, ct, y, c, a, b, ra, rb):
 
 
 @kernel
-def iterate(bodies, invI, ct, y):
-    """VELOCITY_SWEEPS sweeps of projected Gauss-Seidel over the contacts: friction, then the normal row."""
-    for _ in range(VELOCITY_SWEEPS):
-        for c in range(ct.count[0]):
-            a, b = ct.a[c], ct.b[c]
-            ra, rb, nrm = _row3(ct.ra, c), _row3(ct.rb, c), _row3(ct.normal, c)
-            if ct.mu[c] > 0.0:
-                _friction(bodies, invI, ct, y, c, a, b, ra, rb)
-            # lam_n' = max(0, lam_n + m_n (target - u_n))
-            lam = max(0.0, ct.lam[c, 0] + ct.mass[c, 0] * (ct.bounce[c] - relative(y, a, b, ra, rb, nrm)))
-            push(bodies, invI, y, 7, a, b, ra, rb, nrm, lam - ct.lam[c, 0])
-            ct.lam[c, 0] = lam
+def sweep(bodies, invI, ct, y):
+    """One sweep of projected Gauss-Seidel over the contacts: friction, then the normal row."""
+    for c in range(ct.count[0]):
+        a, b = ct.a[c], ct.b[c]
+        ra, rb, nrm = _row3(ct.ra, c), _row3(ct.rb, c), _row3(ct.normal, c)
+        if ct.mu[c] > 0.0:
+            _friction(bodies, invI, ct, y, c, a, b, ra, rb)
+        # lam_n' = max(0, lam_n + m_n (target - u_n))
+        lam = max(0.0, ct.lam[c, 0] + ct.mass[c, 0] * (ct.bounce[c] - relative(y, a, b, ra, rb, nrm)))
+        push(bodies, invI, y, 7, a, b, ra, rb, nrm, lam - ct.lam[c, 0])
+        ct.lam[c, 0] = lam
+
+
+@kernel
+def deep(ct):
+    """Whether a contact is deeper than SLOP (the position pass has work)."""
+    for c in range(ct.count[0]):
+        if ct.depth[c] > SLOP:
+            return True
+    return False
+
+
+@kernel
+def clear(pseudo, ct):
+    """The position pass starts from rest: pseudo-velocities and the contacts' push impulses 0."""
+    for b in range(len(pseudo)):
+        for k in range(7, 13):
+            pseudo[b, k] = 0.0
+    for c in range(ct.count[0]):
+        ct.push[c] = 0.0
 
 
 @kernel
 def separate(bodies, invI, ct, pseudo, h):
-    """The position pass: pseudo-velocities (pseudo (n+1,13), columns 7..12 as v, w in y) that push every contact
-    deeper than SLOP apart at BETA (depth - SLOP) / h (split impulses: they move positions only). Returns whether
-    any contact was that deep."""
-    deep = False
+    """One sweep of the position pass over the contacts: pseudo-velocities (pseudo (n+1,13), columns 7..12 as v, w
+    in y) that push every contact deeper than SLOP apart at BETA (depth - SLOP) / h (split impulses: they move
+    positions only)."""
     for c in range(ct.count[0]):
-        ct.push[c] = 0.0
-        deep = deep or ct.depth[c] > SLOP
-    if not deep:
-        return False
-    for b in range(len(pseudo)):
-        for k in range(7, 13):
-            pseudo[b, k] = 0.0
-    for _ in range(POSITION_SWEEPS):
-        for c in range(ct.count[0]):
-            if ct.depth[c] <= SLOP:
-                continue
-            a, b = ct.a[c], ct.b[c]
-            ra, rb, nrm = _row3(ct.ra, c), _row3(ct.rb, c), _row3(ct.normal, c)
-            target = BETA * (ct.depth[c] - SLOP) / h
-            lam = max(0.0, ct.push[c] + ct.mass[c, 0] * (target - relative(pseudo, a, b, ra, rb, nrm)))
-            push(bodies, invI, pseudo, 7, a, b, ra, rb, nrm, lam - ct.push[c])
-            ct.push[c] = lam
-    return True
+        if ct.depth[c] <= SLOP:
+            continue
+        a, b = ct.a[c], ct.b[c]
+        ra, rb, nrm = _row3(ct.ra, c), _row3(ct.rb, c), _row3(ct.normal, c)
+        target = BETA * (ct.depth[c] - SLOP) / h
+        lam = max(0.0, ct.push[c] + ct.mass[c, 0] * (target - relative(pseudo, a, b, ra, rb, nrm)))
+        push(bodies, invI, pseudo, 7, a, b, ra, rb, nrm, lam - ct.push[c])
+        ct.push[c] = lam
 
 
 @kernel

@@ -143,3 +143,44 @@ def test_the_report_says_which_path_and_why():
     assert sim.contact_report() == {"path": "exact", "why": "no impact between moving bodies"}
     sim = Simulation.from_text(heap(30, "sphere"))
     assert sim.contact_report()["why"] == "a heap: 30 moving bodies collide"
+
+
+def chain(links: int, plan: str = "dynamics") -> str:
+    capsules = "\n".join(f"  body c{i} capsule {{ radius 2 cm  length 10 cm  material m  at ({0.14 * i}, "
+                         f"{0.5 + 0.02 * i}, 0) m  orient (0, 90 deg, 0) }}" for i in range(links))
+    joints = "\n".join(f"  constraint j{i} point(c{i} @ (0, 0, 0.07) m, c{i + 1} @ (0, 0, -0.07) m)"
+                       for i in range(links - 1))
+    return scene("  body floor plane { material m }\n" + capsules + "\n" + joints, plan,
+                 material="density 1000 kg/m3  friction 0.5  restitution 0.3")
+
+
+@pytest.mark.parametrize("plan", PLANS)
+def test_a_chain_of_capsules_piles_on_the_floor_with_its_joints_held(plan):
+    # the links land together and keep landing: the exact path's looks come at nearly every step, and the run
+    # changes to the capturing path with the joints' rows in its sweeps
+    sim = finish(chain(8, plan))
+    report = sim.contact_report()
+    assert report["path"] == "capturing" and report["why"].startswith("the contacts changed"), report
+    assert report["deepest"] < 1e-3
+    assert sim.constraint_errors()[0] < 1e-4
+    E = sim.energies
+    assert np.all(np.diff(E) <= 0.01 * (E[0] - E.min()))
+    y = sim.state.y[:-1]
+    assert np.abs(y[1:, 1] - 0.02).max() < 1e-3 and np.abs(y[:, 7:13]).max() < 1e-2  # lying on the floor, at rest
+
+
+@pytest.mark.parametrize("shape", ["capsule { radius 3 cm  length 12 cm", "cylinder { radius 4 cm  length 12 cm"])
+def test_capsules_and_cylinders_dropped_onto_boxes_come_to_rest_on_them(shape):
+    bodies = ["  body floor plane { material m }",
+              "  body table box { size (0.6, 0.1, 0.6) m  material m  at (0, 0.05, 0) m }"]
+    for i in range(4):
+        bodies.append(f"  body p{i} {shape}  material m  at ({-0.2 + 0.13 * i}, {0.3 + 0.05 * i}, 0) m"
+                      f"  orient ({20 * i}, 90 deg, 0) }}")
+    sim = finish(scene("\n".join(bodies), material="density 800 kg/m3  friction 0.6  restitution 0.2"))
+    report = sim.contact_report()
+    assert report["path"] == "capturing" and report["deepest"] < 1e-3, report
+    E = sim.energies
+    assert np.all(np.diff(E) <= 0.01 * (E[0] - E.min()))
+    y = sim.state.y[:-1]
+    on_table = y[2:, 1]
+    assert np.all(on_table > 0.1) and np.abs(y[2:, 7:10]).max() < 1e-2  # resting on the table, not through it

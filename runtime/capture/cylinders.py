@@ -1,0 +1,258 @@
+"""Compiled cylinder-box test (conventions: narrow.py; a cylinder's axis along its body z, radius r, half length hl).
+
+The separation along a unit axis L, as for two boxes (boxes.py), with the cylinder's half extent along L
+
+    gap(L) = |d . L| - (|u . L| hl + r sqrt(1 - (u . L)^2)) - sum_j h_j |b_j . L|,    d = x_cyl - x_box,
+
+over the candidate axes: the box's face normals (0-2), the cylinder's axis u (3), the crosses b_j x u (4-6: an
+edge against the side), for each box corner the direction from the cylinder's nearest point to it (8-15: a corner
+against a rim), and the best across each edge direction b_i in each of two quarter turns (16-21: an edge against
+a rim, or lying along the side: `across_edge`; 7 is none). Every gap is at most the signed distance (which is the
+largest gap over all directions), so the largest is the closest to it (the pair's -depth). A face normal wins
+unless another axis beats it by PREFERENCE of the smallest size (a resting cylinder picks the face), the axis
+unless another beats it so.
+
+On a face normal or the axis: the box face facing the cylinder most is the reference face, and the contacts are
+
+    the cylinder's lowest line (the rim points of each cap nearest the face, down: -n with its part along u
+    removed) clipped to the face's rectangle: its two ends (features 0 and 4, or 8 + 4 end + the side that
+    clipped it);
+    the other rim points a quarter turn apart (4 cap + q, q = 1..3) inside the rectangle;
+    the face's corners inside the cylinder (16 + corner), their depth the cylinder's closed-form penetration;
+
+a rim point's depth is how far it lies below the face, its contact point halfway back up. A cylinder standing on
+a face rests on the rim points of its cap (four), lying on it on its lowest line (two), tilted on its lowest rim
+point; a box on a cap rests on its corners within the disc. Each feature is 32 face + the one above. On any other
+axis, one point (192 + the axis) midway between the closest points of the two supports along it (a box's edge or
+corner; the cylinder's side line or rim point).
+"""
+from __future__ import annotations
+
+import math
+
+from ..core.jit import kernel
+from ..core.vec import add3, cross3, dot3, norm3, row3, scale3, sub3
+from .boxes import corner, toward
+from .common import UP, clamp, col3, emit, perpendicular, segment, segment_segment, sign, unit3
+
+PREFERENCE = 1e-3
+# crosses of nearly parallel directions (|b_j x u| below this) are skipped: `across_edge` covers them
+PARALLEL = 1e-6
+# directions this close to across the axis (|u . n|), or to along a box face (|b_j . n|), make a support a line
+FLAT = 1e-6
+SINGLE, APART = 192, 224  # SINGLE + axis (0-21)
+
+
+@kernel
+def extent(u, r, hl, n):
+    """The cylinder's half extent along unit n: |u . n| hl + r sqrt(1 - (u . n)^2)."""
+    c = abs(dot3(u, n))
+    return c * hl + r * math.sqrt(max(1.0 - c * c, 0.0))
+
+
+@kernel
+def gap(shapes, b, R, d, u, r, hl, n):
+    s = abs(dot3(d, n)) - extent(u, r, hl, n)
+    for j in range(3):
+        s -= shapes.half[b, j] * abs(dot3(col3(R, b, j), n))
+    return s
+
+
+@kernel
+def point_cylinder(p, c, u, r, hl):
+    """(signed distance, nearest surface point) of p to the solid cylinder (centre c, axis u); a point inside
+    leaves through the nearer of the side (room r - rho) and the cap (room hl - |z|)."""
+    v = sub3(p, c)
+    z = dot3(v, u)
+    radial, rho = unit3(sub3(v, scale3(z, u)))
+    if rho <= r and abs(z) <= hl:
+        if r - rho < hl - abs(z):
+            return rho - r, add3(c, add3(scale3(z, u), scale3(r, radial)))
+        return abs(z) - hl, add3(c, add3(scale3(hl if z >= 0.0 else -hl, u), scale3(rho, radial)))
+    s = add3(c, add3(scale3(clamp(z, -hl, hl), u), scale3(min(rho, r), radial)))
+    return norm3(sub3(p, s)), s
+
+
+@kernel
+def candidate(shapes, b, y, R, c, u, r, hl, d, k):
+    """(candidate axis k, whether it is one; module docstring)."""
+    if k < 3:
+        return col3(R, b, k), True
+    if k == 3:
+        return u, True
+    if k < 8:  # (7: unused)
+        n, length = unit3(cross3(col3(R, b, k - 4), u))
+        return n, length > PARALLEL and k < 7
+    if k < 16:
+        q = corner(shapes, b, y, R, k - 8)
+        n, length = unit3(sub3(q, point_cylinder(q, c, u, r, hl)[1]))
+        return n, length > 1e-12
+    return across_edge(shapes, b, R, d, u, r, hl, (k - 16) // 2, k % 2), True
+
+
+@kernel
+def cylinder_box(shapes, a, b, y, R, sink):
+    c, u, r, hl = row3(y, a, 0), col3(R, a, 2), shapes.radius[a], shapes.half_length[a]
+    x = row3(y, b, 0)
+    d = sub3(c, x)
+    ff, kf, fu, fo, io, no = -1e300, 0, -1e300, -1e300, 0, UP
+    for k in range(22):
+        n, valid = candidate(shapes, b, y, R, c, u, r, hl, d, k)
+        g = gap(shapes, b, R, d, u, r, hl, n) if valid else -1e300
+        if k < 3 and g > ff:
+            ff, kf = g, k
+        elif k == 3:
+            fu = g
+        elif k > 3 and g > fo:
+            fo, io, no = g, k, n
+    best = max(max(ff, fu), fo)
+    if best > sink[6]:  # apart by more than the margin (written only with margin = inf)
+        n = toward(col3(R, b, kf) if ff >= best else (u if fu >= best else no), d)
+        return emit(sink, 0, scale3(0.5, add3(c, x)), n, -best, APART)
+    small = min(min(r, hl), min(shapes.half[b, 0], min(shapes.half[b, 1], shapes.half[b, 2])))
+    tol = PREFERENCE * small
+    if fo > max(ff, fu) + tol:
+        return single(shapes, a, b, y, R, sink, toward(no, d), -fo, SINGLE + io, 0)
+    if fu > ff + tol:
+        n = toward(u, d)
+        k, top = 0, -1.0
+        for j in range(3):
+            if abs(dot3(col3(R, b, j), n)) > top:
+                k, top = j, abs(dot3(col3(R, b, j), n))
+        return cap_face(shapes, a, b, y, R, sink, k, n, -fu, 3, tol)
+    return cap_face(shapes, a, b, y, R, sink, kf, toward(col3(R, b, kf), d), -ff, kf, tol)
+
+
+@kernel
+def across_edge(shapes, b, R, d, u, r, hl, i, quarter):
+    """The axis of largest gap across box b's edges along b_i, n = cos t b_j + sin t b_k, t in the quarter turn
+    [0, pi/2] or [pi/2, pi] (j, k = i + 1, i + 2; with -n, that quarter and the opposite one): a rim against an
+    edge. Golden-section search (the gap is the 2-D signed distance of the shapes projected across b_i, one peak
+    when they are apart): 41 steps, 2e-9 rad."""
+    g = 0.6180339887498949
+    bj, bk = col3(R, b, (i + 1) % 3), col3(R, b, (i + 2) % 3)
+    lo, hi = 0.5 * math.pi * quarter, 0.5 * math.pi * (quarter + 1)
+    c, e, fc, fe, which = hi - g * (hi - lo), lo + g * (hi - lo), 0.0, 0.0, 0
+    for step in range(42):  # one gap a step, at c (which = 0) or e, the point the last step moved
+        t = c if which == 0 else e
+        f = gap(shapes, b, R, d, u, r, hl, add3(scale3(math.cos(t), bj), scale3(math.sin(t), bk)))
+        if which == 0:
+            fc = f
+        else:
+            fe = f
+        if step == 0:
+            which = 1
+        elif fc > fe:
+            hi, e, fe, which = e, c, fc, 0
+            c = hi - g * (hi - lo)
+        else:
+            lo, c, fc, which = c, e, fe, 1
+            e = lo + g * (hi - lo)
+    t = 0.5 * (lo + hi)
+    return add3(scale3(math.cos(t), bj), scale3(math.sin(t), bk))
+
+
+@kernel
+def cap_face(shapes, a, b, y, R, sink, k, n, depth, axis_index, tol):
+    """The contacts on box b's face k facing the cylinder a (module docstring), normal n from b toward a; when
+    none of them is within tol of the pair's depth (the deepest point lies beside the face): one more on the
+    winning axis (its index axis_index) at that depth."""
+    u, r = col3(R, a, 2), shapes.radius[a]
+    m = toward(col3(R, b, k), n)  # the face's outward normal
+    f = add3(row3(y, b, 0), scale3(shapes.half[b, k], m))
+    base = 32 * (2 * k + (0 if dot3(m, col3(R, b, k)) > 0.0 else 1))
+    down, length = unit3(sub3(scale3(dot3(n, u), u), n))
+    if length < 1e-9:  # the axis along n: any direction across it
+        down = perpendicular(u)
+    side = cross3(u, down)
+    s0, s1 = segment(shapes, a, y, R)
+    p0, p1 = add3(s0, scale3(r, down)), add3(s1, scale3(r, down))
+    t0, t1, c0, c1 = clip_line(shapes, b, R, k, f, p0, p1)
+    kept, top = 0, -1e300
+    if t0 <= t1:
+        for e in range(2):
+            p = add3(p0, scale3(t0 if e == 0 else t1, sub3(p1, p0)))
+            clipped = c0 if e == 0 else c1
+            h = -dot3(sub3(p, f), m)
+            top = max(top, h)
+            kept = emit(sink, kept, add3(p, scale3(0.5 * h, m)), n, h,
+                        base + (4 * e if clipped < 0 else 8 + 4 * e + clipped))
+    for i in range(8):
+        q = i % 4
+        if q > 0:
+            p = add3(s0 if i < 4 else s1, scale3(r if q < 2 else -r, down if q % 2 == 0 else side))
+            if inside_face(shapes, b, R, k, f, p):
+                h = -dot3(sub3(p, f), m)
+                top = max(top, h)
+                kept = emit(sink, kept, add3(p, scale3(0.5 * h, m)), n, h, base + i)
+    e1, e2 = (k + 1) % 3, (k + 2) % 3
+    for i in range(4):
+        q = add3(f, add3(scale3((1.0 if i & 1 else -1.0) * shapes.half[b, e1], col3(R, b, e1)),
+                         scale3((1.0 if i & 2 else -1.0) * shapes.half[b, e2], col3(R, b, e2))))
+        h = -point_cylinder(q, row3(y, a, 0), u, r, shapes.half_length[a])[0]
+        top = max(top, h)
+        kept = emit(sink, kept, sub3(q, scale3(0.5 * h, n)), n, h, base + 16 + i)
+    if top < depth - tol:
+        return single(shapes, a, b, y, R, sink, n, depth, SINGLE + axis_index, kept)
+    return kept
+
+
+@kernel
+def inside_face(shapes, b, R, k, f, p):
+    """Whether p lies over the rectangle of box b's face k (centre f)."""
+    v = sub3(p, f)
+    return (abs(dot3(v, col3(R, b, (k + 1) % 3))) <= shapes.half[b, (k + 1) % 3]
+            and abs(dot3(v, col3(R, b, (k + 2) % 3))) <= shapes.half[b, (k + 2) % 3])
+
+
+@kernel
+def clip_line(shapes, b, R, k, f, p0, p1):
+    """The part t0..t1 of p0 + t (p1 - p0), t in [0, 1], over the rectangle of box b's face k (centre f), and the
+    side (2 q + 0 for +b_j, 1 for -b_j, j = k + 1 + q) that cut each end (-1: not cut); t0 > t1: none of it.
+    Liang-Barsky: side s (sign g) keeps g (a0 + t (a1 - a0)) <= h."""
+    t0, t1, c0, c1 = 0.0, 1.0, -1, -1
+    for q in range(2):
+        j = (k + 1 + q) % 3
+        axis, h = col3(R, b, j), shapes.half[b, j]
+        a0, a1 = dot3(sub3(p0, f), axis), dot3(sub3(p1, f), axis)
+        for s in range(2):
+            g = 1.0 - 2.0 * s
+            v, dv = g * a0 - h, g * (a1 - a0)
+            if dv == 0.0:
+                if v > 0.0:
+                    return 1.0, 0.0, -1, -1
+            elif dv > 0.0:
+                if -v / dv < t1:
+                    t1, c1 = -v / dv, 2 * q + s
+            elif -v / dv > t0:
+                t0, c0 = -v / dv, 2 * q + s
+    return t0, t1, c0, c1
+
+
+@kernel
+def single(shapes, a, b, y, R, sink, n, depth, feature, k):
+    """One contact at the given depth, midway between the closest points of the box's support toward the
+    cylinder (+n: a corner, or an edge when n lies across it) and the cylinder's toward the box (-n: a rim
+    point or its cap's centre, or a side line when n lies across the axis)."""
+    p, edge = row3(y, b, 0), -1
+    for j in range(3):
+        axis, w = col3(R, b, j), dot3(col3(R, b, j), n)
+        if abs(w) < FLAT and edge < 0:
+            edge = j
+        else:
+            p = add3(p, scale3(sign(w) * shapes.half[b, j], axis))
+    b0, b1 = p, p
+    if edge >= 0:
+        half = scale3(shapes.half[b, edge], col3(R, b, edge))
+        b0, b1 = sub3(p, half), add3(p, half)
+    u, r = col3(R, a, 2), shapes.radius[a]
+    w = dot3(u, n)
+    across = unit3(sub3(scale3(w, u), n))[0]
+    s0, s1 = segment(shapes, a, y, R)
+    a0, a1 = add3(s0, scale3(r, across)), add3(s1, scale3(r, across))
+    if abs(w) >= FLAT:  # the cap facing -n
+        cap = s0 if w > 0.0 else s1
+        rim = cap if abs(w) > 1.0 - 1e-12 else add3(cap, scale3(r, across))
+        a0, a1 = rim, rim
+    pa, pb = segment_segment(a0, a1, b0, b1)
+    return emit(sink, k, scale3(0.5, add3(pa, pb)), n, depth, feature)
