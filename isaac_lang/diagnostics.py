@@ -186,10 +186,12 @@ class Reporter:
 
 def warning_diagnostic(text: str, severity: str = "warning") -> Diagnostic:
     """A warning of the front end or the plan (`file:line:col: message`, or a bare message) as a Diagnostic, so
-    that it prints the gcc way (`file:line:col: warning: message`, the source line, a caret)."""
+    that it prints the gcc way (`file:line:col: warning: message`, the source line, a caret); a last line
+    `hint: ...` is its hint."""
+    text, sep_hint, hint = text.partition("\nhint: ")
     head, sep, rest = text.partition(": ")
     pos = SourcePos.parse(head) if sep else None
-    return Diagnostic(rest if pos is not None else text, pos, severity=severity)
+    return Diagnostic(rest if pos is not None else text, pos, hint=hint if sep_hint else None, severity=severity)
 
 
 def did_you_mean(word: str, candidates, what: str = "") -> str | None:

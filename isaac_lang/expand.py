@@ -19,7 +19,8 @@ from .files import BadEncoding, Confinement, FileRefused
 from .lower_expr import CONTEXTS, FIXED, BodyRef, ExprContext, ExprLowerer, Scope, Typed, ref_name
 from .syntax import parse_expression, parse_text
 
-DECLARATIONS = ("material", "body", "constraint", "force", "wind", "sound", "camera", "light", "exclude")
+DECLARATIONS = ("material", "body", "constraint", "force", "wind", "sound", "camera", "light", "exclude",
+                "collide")
 
 
 @dataclass(frozen=True)
@@ -266,7 +267,7 @@ class Expander:
             raise lowerer.fail(f"the scene expands to more than {self.limits.max_items} declarations", item,
                                "raise the limit with --max-items if you mean it")
         name = None
-        if kind != "exclude":
+        if kind not in ("exclude", "collide"):
             name = scope.prefix + self.decl_name(item.children[0], scope, lowerer)
         self.out.decls.append(Decl(kind, name, item, scope, lowerer))
 

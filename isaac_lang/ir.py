@@ -210,6 +210,8 @@ class Sound:
     graph: E.Expr  # audio-graph expression (timbre tree)
     gain: float
     source: str
+    # where its trigger (`collide(a, b)`, ...) is written, for a warning about it; not part of the canonical IR
+    trigger_source: str = field(default="", compare=False, repr=False, metadata={"ir": False})
 
 
 @dataclass(frozen=True)
@@ -217,6 +219,16 @@ class Exclusion:
     bodies: tuple
     source: str
     start: float = -math.inf  # s: the window in which the pairs do not collide (the whole run by default)
+    end: float = math.inf
+
+
+@dataclass(frozen=True)
+class Collide:
+    """`collide a, b, ...`: every pair among the bodies collides, even while a constraint joins it."""
+
+    bodies: tuple
+    source: str
+    start: float = -math.inf  # s: the window in which the pairs collide (the whole run by default)
     end: float = math.inf
 
 
@@ -254,6 +266,9 @@ class Scene:
     audio: Audio
     parameters: tuple  # ((name, value), ...) the scene's `let`s after --set overrides
     air_density: float = 1.2  # kg/m3: the drag of bodies that feel air, in still air and in the winds
+    # `collide` statements (Collide, ...); in the canonical JSON only when there are some, so that the IR of a
+    # scene without one is what it was before the statement existed
+    collides: tuple = field(default=(), metadata={"omit_empty": True})
     schema: str = SCHEMA
     # where each scene-wide setting was written: (("time", "file:line:col"), ("solver.step", ...), ...), so that
     # the plan can point at the setting a budget is about; not part of the canonical IR (no JSON, no comparison)
@@ -281,7 +296,7 @@ def to_data(value):
         return E.to_json(value)
     if dataclasses.is_dataclass(value):
         return {f.name: to_data(getattr(value, f.name)) for f in dataclasses.fields(value)
-                if f.metadata.get("ir", True)}
+                if f.metadata.get("ir", True) and not (f.metadata.get("omit_empty") and not getattr(value, f.name))}
     if isinstance(value, tuple) and value and all(isinstance(v, tuple) and len(v) == 2 and isinstance(v[0], str)
                                                   for v in value) and _is_pairs(value):
         return {k: to_data(v) for k, v in value}

@@ -82,7 +82,8 @@ class SceneLowerer:
         settings = self._settings()
         solver = self._solver()
         by_kind = {kind: [] for kind in
-                   ("material", "body", "camera", "light", "constraint", "force", "wind", "sound", "exclude")}
+                   ("material", "body", "camera", "light", "constraint", "force", "wind", "sound", "exclude",
+                    "collide")}
         for decl in self.x.decls:
             by_kind[decl.kind].append(decl)
         self._each(by_kind["material"], self._material)
@@ -95,6 +96,7 @@ class SceneLowerer:
         wind_names = {w.name for w in winds}
         sounds = self._each(by_kind["sound"], lambda d: self._sound(d, wind_names))
         exclusions = self._each(by_kind["exclude"], self._exclusion)
+        collides = self._each(by_kind["collide"], lambda d: self._collide(d, settings["time"]))
         self.reporter.raise_if_any()
         scene = ir.Scene(
             name=name, file=self.root_file, time=settings["time"], gravity=settings["gravity"],
@@ -103,7 +105,7 @@ class SceneLowerer:
             constraints=tuple(constraints), forces=tuple(forces), winds=tuple(winds), sounds=tuple(sounds),
             exclusions=tuple(exclusions), listener=settings["listener"], audio=settings["audio"],
             parameters=tuple(sorted((k, _plain(v.node)) for k, v in self.x.parameters.items())),
-            air_density=settings["air"], origins=setting_origins(self.x),
+            air_density=settings["air"], collides=tuple(collides), origins=setting_origins(self.x),
         )
         self._confined_files(scene)
         return scene
@@ -476,7 +478,8 @@ class SceneLowerer:
         gain = 1.0
         if gain_value is not None:
             gain = self._gain(gain_value, props)
-        return ir.Sound(decl.name, trigger, bodies, wind, time, graph, gain, str(decl.lowerer.pos(decl.tree)))
+        return ir.Sound(decl.name, trigger, bodies, wind, time, graph, gain, str(decl.lowerer.pos(decl.tree)),
+                        trigger_source=str(decl.lowerer.pos(trigger_tree) or decl.lowerer.pos(decl.tree)))
 
     def _gain(self, value, props: Props) -> float:
         node = props.lowerer.coerce(value, U.DIMENSIONLESS, "`gain`", props.node("gain"))
@@ -503,6 +506,46 @@ class SceneLowerer:
         start, end = self.constraints.window(window, decl, "exclusion") if window is not None else (-math.inf, math.inf)
         return ir.Exclusion(tuple(names), str(decl.lowerer.pos(decl.tree)), start, end)
 
+    def _collide(self, decl: Decl, time: ir.Timeline) -> ir.Collide:
+        """`collide a, b, ... [window]`: every pair among the bodies collides, even while a constraint joins it.
+        Each pair must be able to touch: both bodies collide, one can move."""
+        from lark import Tree
+
+        children = list(decl.tree.children)
+        window = None
+        if children and isinstance(children[-1], Tree) and children[-1].data in ("during", "window_from",
+                                                                               "window_until"):
+            window = children.pop()
+        names = [self.resolve_body(t, decl) for t in children]
+        if len(names) < 2:
+            raise decl.lowerer.fail("`collide` names at least two bodies", decl.tree,
+                                    "write `collide a, b`: the pairs among them collide even while a constraint "
+                                    "joins them")
+        seen = {}
+        for name, tree in zip(names, children):
+            if name in seen:
+                raise decl.lowerer.fail(f"`{name}` is named twice in `collide`", tree)
+            seen[name] = tree
+            body = self.bodies[name]
+            if not body.collide:
+                raise decl.lowerer.fail(f"body `{name}` has `collide off`: it collides with nothing", tree,
+                                        f"remove `collide off` from `{name}` (declared at {body.source})")
+        for k, a in enumerate(names):
+            for b in names[k + 1:]:
+                if _never_moves(self.bodies[a]) and _never_moves(self.bodies[b]):
+                    raise decl.lowerer.fail(
+                        f"`{a}` and `{b}` can never touch: neither of them is dynamic ({self.bodies[a].motion} and "
+                        f"{self.bodies[b].motion})", seen[b],
+                        "a pair collides only when one of its bodies is dynamic; name only pairs that can move")
+        start, end = self.constraints.window(window, decl, "collide window") if window is not None \
+            else (-math.inf, math.inf)
+        if window is not None and (start >= time.end or end <= time.start):
+            raise decl.lowerer.fail(
+                f"the window {start:g} s .. {end:g} s is outside the scene's time ({time.start:g} s .. "
+                f"{time.end:g} s)", window, f"write a window within `time {time.start:g} s .. {time.end:g} s`, "
+                                            "or none (the whole run)")
+        return ir.Collide(tuple(names), str(decl.lowerer.pos(decl.tree)), start, end)
+
     # -- names --------------------------------------------------------------------------------------------
 
     def resolve_body(self, tree, decl: Decl, allow_world: bool = False) -> str | None:
@@ -526,6 +569,11 @@ class SceneLowerer:
             raise SceneError(self.reporter.diagnostics)  # already reported where it was declared
         raise lowerer.fail(f"unknown body `{name}`", node,
                            did_you_mean(name, self.bodies) or "declare it with `body NAME SHAPE { ... }`")
+
+
+def _never_moves(body: ir.Body) -> bool:
+    """Static or kinematic for the whole run (a body with `kinematic A .. B` is dynamic before and after)."""
+    return body.motion != "dynamic"
 
 
 def _as_expr(value) -> E.Expr:

@@ -17,7 +17,8 @@ from .diagnostics import Reporter, SourcePos, did_you_mean, source_lines
 from .parse_loop import ParseLoop, Rejected
 
 KEYWORDS = ("scene", "let", "include", "material", "body", "constraint", "kind", "force", "wind", "sound",
-            "camera", "light", "solver", "exclude", "part", "use", "for")
+            "camera", "light", "solver", "exclude", "collide", "part", "use",
+            "for")
 
 # how the grammar's terminals read in an error message
 TOKEN_WORDS = {

@@ -120,7 +120,7 @@ class Simulation:
         self._off_path = (plan.dynamic.copy(), plan.inv_mass.copy(), plan.inv_inertia_body.copy())
         self._act = None  # the Active rows of the epoch the state is in
         self._frame_now = False  # a frame is due at the state's time (recorded before the next step)
-        self._epoch_in = ()  # the epoch (and windowed exclusions) the collision stage was told of
+        self._epoch_in = ()  # the epoch (and windowed exclusions and `collide`s) the collision stage was told of
         self._status = np.zeros(4, np.int64)
         self._initial = self.state.y.copy()  # the state the run started from (a blow-up's diagnosis reads it)
         self._last_delivered = None  # (time, packed state) of the last frame handed on (likewise)
@@ -498,7 +498,7 @@ class Simulation:
         c = self.plan.constraints
         epoch = c.epoch_at(self.state.t + 1e-12) if c is not None else None
         if self.collider is not None:
-            phase = (id(epoch), self.plan.collisions.excluded_at(self.state.t + 1e-12).tobytes())
+            phase = (id(epoch), self.plan.collisions.phase(self.state.t + 1e-12))
             if phase != self._epoch_in:
                 self._epoch_in = phase
                 self.collider.on_epoch(epoch, self.state.t + 1e-12)

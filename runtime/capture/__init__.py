@@ -98,15 +98,17 @@ class CaptureStage:
         pass
 
     def on_epoch(self, epoch, t: float) -> None:
-        """A pair joined by a constraint now, or excluded by a windowed `exclude`, does not collide."""
+        """A pair joined by a constraint now (unless a `collide` names it now), or excluded by a windowed
+        `exclude`, does not collide (CollisionPlan.excluded_now)."""
         from ..collide.pairs import pair_keys
 
         n = self.sim.plan.n
-        keys = np.union1d(self.cp.always_excluded, self.cp.excluded_at(t))
+        joined = np.zeros(0, np.int64)
         if epoch is not None and epoch.active.size:
             rb = self.sim.plan.constraints.row_bodies[epoch.active]
             both = rb[(rb[:, 0] >= 0) & (rb[:, 1] >= 0) & (rb[:, 0] != rb[:, 1])]
-            keys = np.union1d(keys, pair_keys(np.sort(both, axis=1), n))
+            joined = pair_keys(np.sort(both, axis=1), n)
+        keys = self.cp.excluded_now(joined, t)
         self.sweep = self.sweep._replace(excluded=np.ascontiguousarray(np.sort(keys), np.int64))
 
     def frame_events(self, t: float, table) -> None:

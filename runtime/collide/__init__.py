@@ -17,7 +17,7 @@ docs/collisions.md says how it behaves and where its limits are.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -58,6 +58,12 @@ class CollisionPlan:
     kinds: dict
     windows: tuple = ()  # ((start, end, keys), ...): the pairs an `exclude` with a window excludes in it
     fcl_elements: np.ndarray | None = None  # what python-fcl holds: fcl_bodies, or (compound bodies) elements
+    # `collide`: the pairs it names for the whole run (keys), and ((start, end, keys), ...) of those with a window
+    restored: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    collide_windows: tuple = ()
+    # the pairs joined for the whole run that only a windowed `collide` names: excluded outside its window
+    suspended: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    restored_pairs: int = 0  # how many pairs joined by a constraint (at some time) a `collide` gives back
 
     @property
     def always_excluded(self) -> np.ndarray:
@@ -68,9 +74,29 @@ class CollisionPlan:
         keys = [k for start, end, k in self.windows if start <= t < end]
         return np.unique(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
 
+    def restored_at(self, t: float) -> np.ndarray:
+        """The keys of the pairs a `collide` names at time t (they collide even while a constraint joins them)."""
+        keys = [self.restored] + [k for start, end, k in self.collide_windows if start <= t < end]
+        return np.unique(np.concatenate(keys)).astype(np.int64)
+
+    def excluded_now(self, joined: np.ndarray, t: float) -> np.ndarray:
+        """Sorted keys of the pairs that do not collide at t, given the keys of the pairs joined by the
+        constraints on now: those excluded for the whole run, those a windowed `exclude` names now, and the joined
+        ones (with those joined for the whole run that a windowed `collide` names) unless a `collide` names them
+        now. (A `collide` and an `exclude` of one pair at overlapping times is an error of the scene.)"""
+        keys = np.union1d(self.always_excluded, self.excluded_at(t))
+        held = np.union1d(np.asarray(joined, np.int64), self.suspended)
+        held = np.setdiff1d(held, self.restored_at(t))
+        return np.union1d(keys, held).astype(np.int64)
+
+    def phase(self, t: float) -> bytes:
+        """What changes the pairs excluded at t apart from the epoch: the windowed `exclude`s and `collide`s on."""
+        return self.excluded_at(t).tobytes() + b"|" + self.restored_at(t).tobytes()
+
     def window_switches(self) -> list:
-        """The times a windowed exclusion begins or ends."""
-        return sorted({float(v) for start, end, _ in self.windows for v in (start, end) if np.isfinite(v)})
+        """The times a windowed exclusion (or a windowed `collide`) begins or ends."""
+        return sorted({float(v) for start, end, _ in self.windows + self.collide_windows for v in (start, end)
+                       if np.isfinite(v)})
 
     def start(self, simulation):
         from .collider import Collider
@@ -93,8 +119,10 @@ class CollisionPlan:
         kinds = ", ".join(f"{KIND_NAMES.get(k, 'compound')} x{c}" for k, c in sorted(self.kinds.items()) if k != -1)
         narrow = "closed forms" + (f" + python-fcl ({len(self.fcl_bodies)} bodies)" if len(self.fcl_bodies) else "")
         reasons = ", ".join(f"{v} {k}" for k, v in self.reasons.items() if v)
+        n = self.restored_pairs
+        restored = f"; {n} joined pair{'s' if n != 1 else ''} restored by `collide`" if n else ""
         return (f"collisions: {len(self.collidable)} bodies ({kinds}), {self.pairs} pairs can touch"
-                f"{' (excluded: ' + reasons + ')' if reasons else ''}; narrow phase: {narrow}")
+                f"{' (excluded: ' + reasons + ')' if reasons else ''}{restored}; narrow phase: {narrow}")
 
 
 def compile_collisions(scene, plan, folder=None) -> CollisionPlan | None:
@@ -132,8 +160,15 @@ def compile_collisions(scene, plan, folder=None) -> CollisionPlan | None:
     windows = tuple((ex.start, ex.end, pair_keys(np.array(exclusion_pairs(ex, index), np.int64).reshape(-1, 2),
                                                  len(scene.bodies)))
                     for ex in scene.exclusions if ex.start > plan.start or ex.end < plan.end)
+    collides = getattr(scene, "collides", ())
+    whole = [p for c in collides if c.start <= plan.start and c.end >= plan.end for p in exclusion_pairs(c, index)]
+    whole = np.unique(pair_keys(np.array(whole, np.int64).reshape(-1, 2), len(scene.bodies)))
+    collide_windows = tuple((c.start, c.end, pair_keys(np.array(exclusion_pairs(c, index), np.int64).reshape(-1, 2),
+                                                       len(scene.bodies)))
+                            for c in collides if c.start > plan.start or c.end < plan.end)
     return CollisionPlan(table, collidable, excluded, pairs, reasons, friction, restitution, has, fcl_bodies,
-                         CONTACT_MARGIN, counted, windows, fcl_parts)
+                         CONTACT_MARGIN, counted, windows, fcl_parts, whole.astype(np.int64), collide_windows,
+                         keys["suspended"], len(keys["restored"]))
 
 
 def _touchable_pairs(compounds, collidable, dynamic, excluded, n) -> np.ndarray:

@@ -112,13 +112,15 @@ class Collider:
     def on_epoch(self, epoch, t: float) -> None:
         """A new epoch (or a windowed `exclude` began or ended at t): a pair joined by a constraint is excluded
         while the constraint is on (and collides before and after), a pair an `exclude` names while its window
-        lasts (always, without one)."""
+        lasts (always, without one); a pair a `collide` names collides while it lasts, joined or not
+        (CollisionPlan.excluded_now)."""
         n = self.plan.n
-        keys = np.union1d(self.cp.always_excluded, self.cp.excluded_at(t))
+        joined = np.zeros(0, np.int64)
         if epoch is not None and epoch.active.size:
             rb = self.plan.constraints.row_bodies[epoch.active]
             both = rb[(rb[:, 0] >= 0) & (rb[:, 1] >= 0) & (rb[:, 0] != rb[:, 1])]
-            keys = np.union1d(keys, pair_keys(both, n))
+            joined = pair_keys(both, n)
+        keys = self.cp.excluded_now(joined, t)
         self.broad.excluded = keys
         pairs = self.sim.compiled.model.pairs
         now = is_excluded(pair_keys(np.stack([pairs.a, pairs.b], 1), n), keys)

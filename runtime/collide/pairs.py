@@ -3,10 +3,12 @@
 Exclusion, once: a pair never collides when
   * either body has `collide off` (it is not in the collidable list at all);
   * neither body is dynamic (static-static, static-kinematic, kinematic-kinematic: nothing could respond);
-  * a constraint joins the two bodies for the whole run (a joint's parts overlap by design);
+  * a constraint joins the two bodies for the whole run (a joint's parts overlap by design), unless a `collide`
+    names them (`collide a, b, c`: every pair within the group collides anyway, a clapper and its bell);
   * the scene excludes them (`exclude a, b, c`: every pair within the group).
 A pair joined by a constraint for part of the run only is excluded while the constraint is on (the collision
-stage follows the epochs: collider.on_epoch), and collides before and after.
+stage follows the epochs: collider.on_epoch), and collides before and after; a `collide` with a window gives a
+joined pair back while its window lasts (CollisionPlan.excluded_now).
 The explicit exclusions are kept as sorted pair keys i * n + j (i < j), so a lookup is a binary search and the
 memory is O(excluded pairs), never O(n^2).
 
@@ -42,38 +44,51 @@ def exclusion_pairs(exclusion, index: dict) -> list:
 
 def excluded_keys(scene, plan, collidable: np.ndarray) -> dict:
     """Sorted keys of the pairs excluded for the whole run that would otherwise count (both collidable, one
-    dynamic), by reason: {"joined": keys (by a constraint on for the whole run), "excluded": keys (by an
-    `exclude` without a window)}."""
+    dynamic), by reason: {"joined": keys (by a constraint on for the whole run, and no `collide` naming them at any
+    time), "excluded": keys (by an `exclude` without a window)}; and the pairs a `collide` gives back:
+    "restored": keys of pairs joined by a constraint (at any time) that a `collide` names, "suspended": keys of
+    pairs joined for the whole run that only a `collide` with a window names (excluded outside that window: the
+    collision stage's, CollisionPlan.excluded_now)."""
     n = len(scene.bodies)
     index = scene.body_index()
     ok = np.zeros(n, bool)
     ok[collidable] = True
-    joined = []
+    whole = (lambda start, end: start <= plan.start and end >= plan.end)
+    joined, ever = [], []
     if plan.constraints is not None:
         c = plan.constraints
         rb = c.row_bodies
+        pair = (rb[:, 0] >= 0) & (rb[:, 1] >= 0) & (rb[:, 0] != rb[:, 1])
         # rows on for the whole run
         always = (c.row_start <= plan.start) & (c.row_end >= plan.end)
-        both = (rb[:, 0] >= 0) & (rb[:, 1] >= 0) & (rb[:, 0] != rb[:, 1]) & always
-        joined = [tuple(p) for p in rb[both]]
+        joined = [tuple(p) for p in rb[pair & always]]
+        ever = [tuple(p) for p in rb[pair]]
         # a term may name two bodies without a row touching both (e.g. gear-to-weight of a static gear)
         for constraint in scene.constraints:
-            if constraint.start > plan.start or constraint.end < plan.end:
-                continue
             for term in constraint.terms:
                 named = [index[b] for b in term.bodies if b in index]
-                joined += [(p, q) for k, p in enumerate(named) for q in named[k + 1:] if p != q]
+                both = [(p, q) for k, p in enumerate(named) for q in named[k + 1:] if p != q]
+                ever += both
+                if whole(constraint.start, constraint.end):
+                    joined += both
     grouped = []
     for exclusion in scene.exclusions:
-        if exclusion.start <= plan.start and exclusion.end >= plan.end:  # (a windowed one: the collider's)
+        if whole(exclusion.start, exclusion.end):  # (a windowed one: the collider's)
             grouped += exclusion_pairs(exclusion, index)
-    out = {}
-    for reason, pairs in (("joined", joined), ("excluded", grouped)):
+    collides = getattr(scene, "collides", ())
+    named_always = [p for c in collides if whole(c.start, c.end) for p in exclusion_pairs(c, index)]
+    named_ever = [p for c in collides for p in exclusion_pairs(c, index)]
+
+    def counted(pairs):
         keys = pair_keys(np.array(pairs, np.int64).reshape(-1, 2), n)
         i, j = keys // n, keys % n
-        counts = ok[i] & ok[j] & (plan.dynamic[i] | plan.dynamic[j])
-        out[reason] = np.unique(keys[counts])
-    return out
+        return np.unique(keys[ok[i] & ok[j] & (plan.dynamic[i] | plan.dynamic[j])])
+
+    joined, ever, grouped = counted(joined), counted(ever), counted(grouped)
+    named_always, named_ever = counted(named_always), counted(named_ever)
+    return {"joined": np.setdiff1d(joined, named_ever), "excluded": grouped,
+            "restored": np.intersect1d(ever, named_ever),
+            "suspended": np.setdiff1d(np.intersect1d(joined, named_ever), named_always)}
 
 
 def pair_keys(pairs: np.ndarray, n: int) -> np.ndarray:
