@@ -1,0 +1,178 @@
+"""The shipped scenes of many contacts against their answers: scenes/heap.isaac (216 bodies into a bin) and
+scenes/dominoes.isaac (a row of 20 falling dominoes), each run once at its own settings (the capturing path,
+docs/collisions.md "Many contacts")."""
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from isaac_lang.load import load_scene
+from isaac_runtime.rotation import quat_to_matrix
+from isaac_runtime.run import RunOptions, simulate
+
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
+G = 9.81
+
+
+@functools.lru_cache(maxsize=None)
+def run(name: str):
+    scene = load_scene(SCENES / f"{name}.isaac").scene
+    result = simulate(scene, RunOptions())
+    assert result.error is None, result.error
+    return scene, result
+
+
+def energy_rises(energy: np.ndarray) -> float:
+    """The largest rise of the energy over a frame, relative to the energy that was available (start - minimum)."""
+    return float(np.diff(energy).max() / (energy[0] - energy.min()))
+
+
+# ---- the heap ---------------------------------------------------------------------------------------------------
+
+HALF = 0.55  # the bin's half-width (scenes/heap.isaac `half`)
+
+
+def extents(shape: dict, R: np.ndarray) -> np.ndarray:
+    """(B, 3): how far each body reaches from its centre along the world axes, from its shape and rotations R."""
+    kind = shape["type"]
+    if kind == "sphere":
+        return np.full((len(R), 3), shape["radius"])
+    if kind == "box":
+        return np.abs(R) @ (np.asarray(shape["size"]) / 2)
+    assert kind == "capsule", kind
+    return shape["radius"] + np.abs(R[:, :, 2]) * shape["length"] / 2  # the axis is body z
+
+
+def heap_end():
+    scene, result = run("heap")
+    arrays = result.recorder.arrays()
+    moving = [i for i, b in enumerate(scene.bodies) if b.shape.type != "plane"]
+    return scene, result, arrays, moving
+
+
+def test_heap_takes_the_capturing_path_and_its_energy_never_rises():
+    scene, result, arrays, moving = heap_end()
+    contact = result.report["contact"]
+    assert contact["path"] == "capturing" and contact["why"] == "a heap: 216 moving bodies collide"
+    assert len(moving) == 216 and {scene.bodies[i].shape.type for i in moving} == {"sphere", "box", "capsule"}
+    # measured: the largest rise over a frame is 4e-6 of the 615 J the fall makes available; no step's
+    # impulses created energy
+    assert energy_rises(arrays["energy"]) < 0.01
+    assert contact["steps_creating_energy"] == 0
+
+
+def test_heap_ends_inside_the_bin_above_the_floor():
+    scene, _, arrays, moving = heap_end()
+    x = arrays["position"][-1]
+    R = quat_to_matrix(arrays["orientation"][-1])
+    for i in moving:
+        reach = extents(_shape(scene.bodies[i]), R[i:i + 1])[0]
+        name = scene.bodies[i].name
+        assert x[i, 1] - reach[1] > -1e-3, (name, x[i], reach)  # above the floor (within the 1 mm allowed)
+        assert abs(x[i, 0]) + reach[0] < HALF + 1e-3 and abs(x[i, 2]) + reach[2] < HALF + 1e-3, (name, x[i])
+
+
+def _shape(body) -> dict:
+    s = body.shape
+    return {"type": s.type, "radius": s.radius, "length": s.length, "size": s.size}
+
+
+def test_heap_comes_to_rest():
+    # No rolling friction (docs/collisions.md "Not done"): a sphere or a capsule lying on its side on the floor
+    # keeps rolling at the speed it was left with. Measured at 3 s: every box below 3e-5 m/s and 7e-4 rad/s
+    # (at rest); the 5 cm rubber balls below 3.2 mm/s, the wooden capsules below 0.9 mm/s, the steel capsules
+    # below 4.2 mm/s, and five 3 cm steel balls still rolling on the floor at 4 to 19 mm/s (the others < 4 mm/s).
+    scene, _, arrays, moving = heap_end()
+    v = np.linalg.norm(arrays["linear_velocity"][-1], axis=1)
+    w = np.linalg.norm(arrays["angular_velocity"][-1], axis=1)
+    boxes = [i for i in moving if scene.bodies[i].shape.type == "box"]
+    assert v[boxes].max() < 1e-3 and w[boxes].max() < 1e-2, (v[boxes].max(), w[boxes].max())
+    assert v[moving].max() < 0.05
+    rolling = [i for i in moving if v[i] > 0.005]
+    assert all(scene.bodies[i].shape.type == "sphere" for i in rolling), [scene.bodies[i].name for i in rolling]
+    # the kinetic energy left is a hundred-thousandth of what the fall made available
+    m = np.array([scene.bodies[i].mass for i in moving])
+    kinetic = 0.5 * (m * v[moving] ** 2).sum()
+    assert kinetic < 1e-5 * (arrays["energy"][0] - arrays["energy"].min())
+
+
+@pytest.mark.xfail(reason="the capturing path lets bodies of the heap interpenetrate by 2.47 mm (12 steps beyond "
+                          "1 mm) when the upper layers land on the lower ones (t = 0.389 s, `slab0_3_0` and "
+                          "`slab1_3_0`); 1.05 mm at a 0.5 ms step", strict=True)
+def test_heap_has_no_interpenetration_deeper_than_a_millimetre():
+    _, result, _, _ = heap_end()
+    assert result.report["contact"]["deepest"] < 1e-3, result.report["contact"]
+
+
+# ---- the dominoes -----------------------------------------------------------------------------------------------
+
+COUNT, HEIGHT, THICK, SPACING = 20, 0.10, 0.015, 0.05  # scenes/dominoes.isaac
+
+
+def dominoes():
+    scene, result = run("dominoes")
+    events = [e for e in result.simulation.events if e["kind"] == "impact"]
+    first = []
+    for i in range(COUNT - 1):
+        times = [e["time"] for e in events if e["bodies"] == [f"d{i}", f"d{i + 1}"]]
+        first.append(min(times) if times else math.nan)
+    return scene, result, events, np.array(first)
+
+
+def test_every_domino_falls():
+    scene, result, _, _ = dominoes()
+    arrays = result.recorder.arrays()
+    R = quat_to_matrix(arrays["orientation"][-1])
+    index = {b.name: i for i, b in enumerate(scene.bodies)}
+    tilt = np.degrees(np.arccos(np.clip([R[index[f"d{i}"]][1, 1] for i in range(COUNT)], -1, 1)))
+    # each leans on the next, parallel faces, the next one's face through this one's top corner:
+    # cos(tilt) = thick / spacing, 72.54 deg (measured 71.95 to 72.94 deg); the one before the last leans on the
+    # last, lower (80.5 deg); the last lies on the floor (90 deg)
+    leaning = math.degrees(math.acos(THICK / SPACING))
+    assert np.all(tilt > 60), tilt
+    assert np.all(np.abs(tilt[:-2] - leaning) < 1.5), tilt
+    assert tilt[-1] == pytest.approx(90, abs=0.5)
+    assert np.abs(arrays["linear_velocity"][-1]).max() < 1e-6  # all at rest
+
+
+def test_the_dominoes_strike_one_another_in_order_and_each_strike_clicks():
+    scene, result, events, first = dominoes()
+    assert not np.isnan(first).any(), first  # every neighbour pair strikes
+    assert np.all(np.diff(first) > 0), first
+    contact = result.report["contact"]
+    assert contact["path"] == "capturing" and contact["since"] == pytest.approx(first[0])
+    # every strike of a neighbour pair is a hit of the audio record, and of the sound of that pair
+    sounds = {tuple(s.bodies): s.name for s in scene.sounds}
+    assert len(sounds) == COUNT - 1
+    hits = [h for h in result.audio.record.hits if h.bodies in sounds]
+    assert {h.bodies for h in hits} == set(sounds)
+    neighbours = [e for e in events if tuple(e["bodies"]) in sounds]
+    assert len(hits) == len(neighbours) >= COUNT - 1
+    samples = result.audio.render()[:, 0]
+    rate = result.audio.plan.fs
+    for t in first:  # a click at each pair's first strike
+        k = int(round(t * rate))
+        assert np.abs(samples[k:k + int(0.002 * rate)]).max() > 1e-4
+    assert np.abs(samples[:int(round(first[0] * rate))]).max() == 0  # silence before the first strike
+
+
+def test_the_wave_runs_at_a_constant_speed():
+    _, _, _, first = dominoes()
+    speed = SPACING / np.diff(first)
+    # the wave starts slow (0.55 m/s between the first two pairs) and speeds up over about eight dominoes; from
+    # the ninth pair on it runs at 1.414 m/s = 1.43 sqrt(g H) (measured 1.408 to 1.435 m/s)
+    steady = speed[8:]
+    assert np.abs(steady / steady.mean() - 1).max() < 0.02, speed
+    assert 1.2 < steady.mean() / math.sqrt(G * HEIGHT) < 1.7
+    assert np.all(np.diff(speed[:7]) > 0)
+
+
+def test_the_dominoes_neither_interpenetrate_nor_gain_energy():
+    _, result, _, _ = dominoes()
+    contact = result.report["contact"]
+    assert contact["deepest"] < 1e-3 and contact["steps_too_deep"] == 0, contact
+    assert energy_rises(result.recorder.arrays()["energy"]) < 0.01
