@@ -243,11 +243,16 @@ def run(quick: bool = False, out: Path | None = None, solvers=("dynamics",), lim
     todo = cases(quick, boxes_1000, only)
     warm_up(sorted({k for k, _ in todo}, reverse=True), solvers)
     rows = []
+    try:
+        import mujoco  # noqa: F401 (the `bench` extra; without it our rows alone, their ratios NaN)
+        peers = ("RK4", "Euler")
+    except ImportError:
+        peers = ()
     for kind, count in todo:
-        mj = [run_mujoco(count, kind, integ, limit) for integ in ("RK4", "Euler")]
+        mj = [run_mujoco(count, kind, integ, limit) for integ in peers]
         ours = [run_ours(count, kind, plan, limit) for plan in solvers]
         for r in mj + ours:
-            r["ratio_to_mujoco_rk4"] = r["wall_s"] / mj[0]["wall_s"]
+            r["ratio_to_mujoco_rk4"] = r["wall_s"] / mj[0]["wall_s"] if mj else math.nan
             r.pop("_report", None)
             common.log(f"  {r['scene']:<16} {r['engine']:<7} {r['plan/integrator']:<16} {r['wall_s']:8.3f} s  "
                        f"{r['per_step_us']:9.1f} us/step  x{r['ratio_to_mujoco_rk4']:.2f}  "

@@ -32,7 +32,7 @@ from . import common  # noqa: E402
 
 # the sections in running order, and the module of each (with run(quick, out) -> dict)
 SECTION_MODULES = {"work_precision": "work_precision", "scaling": "scaling", "stress": "stress",
-                   "specialization": "specialization", "audio": "audio_rtf", "profile": "profiling"}
+                   "specialization": "specialization", "audio": "audio_rtf", "profile": "profiling", "contact": "contact"}
 SECTIONS = tuple(SECTION_MODULES)
 DOC = common.REPO / "docs" / "performance.md"
 

@@ -118,7 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # benchmarks/suite.py SECTIONS, repeated here so that building the parser imports nothing
-BENCH_SECTIONS = ("work_precision", "scaling", "stress", "specialization", "audio", "profile")
+BENCH_SECTIONS = ("work_precision", "scaling", "stress", "specialization", "audio", "profile", "contact")
 
 
 def run_options(sub: argparse.ArgumentParser) -> None:

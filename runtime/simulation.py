@@ -529,7 +529,11 @@ class Simulation:
             self.switch_to_capture(f"a heap: {n} moving bodies collide")
             return
         self.collider = plan.collisions.start(self)
-        self.collider.may_capture = self.capture_refused is None and not capture.jointed(plan)
+        self.collider.may_capture = self.capture_refused is None and (plan.solver == "procedural"
+                                                                      or not capture.jointed(plan))
+        # the procedural plan's exact contacts gain energy when a jointed body strikes (a chain landing): it hands
+        # over at the first impact of one, whatever it strikes (Collider.on_epoch marks them)
+        self.collider.jointed_strike = plan.solver == "procedural" and self.capture_refused is None
         self._active()
         self.collider.start()
 

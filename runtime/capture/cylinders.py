@@ -33,7 +33,8 @@ import math
 from ..core.jit import kernel
 from ..core.vec import add3, cross3, dot3, norm3, row3, scale3, sub3
 from .boxes import corner, toward
-from .common import UP, clamp, col3, emit, perpendicular, segment, segment_segment, sign, unit3
+from .common import (UP, clamp, closest_on_segment, col3, emit, perpendicular, segment, segment_segment, sign,
+                     unit3)
 
 PREFERENCE = 1e-3
 # crosses of nearly parallel directions (|b_j x u| below this) are skipped: `across_edge` covers them
@@ -256,3 +257,234 @@ def single(shapes, a, b, y, R, sink, n, depth, feature, k):
         a0, a1 = rim, rim
     pa, pb = segment_segment(a0, a1, b0, b1)
     return emit(sink, k, scale3(0.5, add3(pa, pb)), n, depth, feature)
+
+
+# ---- cylinder against cylinder or capsule ------------------------------------------------------------------------
+#
+# The depth is minus the largest separation over directions n (as above),
+#
+#     gap(n) = |d . n| - extent_a(n) - extent_b(n),    extent of a capsule |u . n| hl + r,
+#
+# found by a pattern search on the sphere from the best of a few candidate directions (the axes, their cross, the
+# line between the axes' closest points, the directions between each cap's centre and the other body). The
+# contacts, all with the normal n from b toward a:
+#
+#     two cylinders or a cylinder and a capsule lying side by side (n across both axes, the axes parallel within
+#     SIDE): the two ends of the overlap of the axes (features 0, 1), depth r_a + r_b - the axes' distance there;
+#     else each cylinder's rim points (feature 8 body + 4 cap + q): on each cap its deepest toward the other body
+#     (q = 0), and on the cap facing it (within 60 degrees of -n for a, of n for b) three more a quarter turn
+#     apart; a capsule's end spheres (8 + 4 + end); each at its closed-form depth in the other body (-its signed distance to the solid cylinder, or to the
+#     capsule's segment minus its radius);
+#     when none of them is within TOL of the pair's depth (a side across a side, a rim across a rim): one more
+#     (ACROSS) at that depth, midway between the closest points of the two supports along n.
+
+SIDE = 1e-3  # |u_a x u_b| and |u . n| below this: lying side by side
+TOL = 1e-3  # of the smallest size
+FACING = 0.5  # |u . n| above this: a cap faces the other body (its quarter-turn rim points)
+ACROSS = 32
+
+
+@kernel
+def round_extent(u, r, hl, n, capsule):
+    return abs(dot3(u, n)) * hl + r if capsule else extent(u, r, hl, n)
+
+
+@kernel
+def round_gap(d, ua, ra, ha, ub, rb, hb, capsule, n):
+    return abs(dot3(d, n)) - extent(ua, ra, ha, n) - round_extent(ub, rb, hb, n, capsule)
+
+
+@kernel
+def refine(d, ua, ra, ha, ub, rb, hb, capsule, n, f):
+    """Pattern search from n: steps along two tangents, their diagonals and the two ridges (the great circles
+    across each axis), halved when none gains, from 0.1 rad to 1e-9."""
+    step = 0.1
+    for _ in range(400):
+        if step < 1e-9:
+            break
+        t1 = perpendicular(n)
+        t2 = cross3(n, t1)
+        moved = False
+        bn, bf = n, f
+        for j in range(12):
+            m = j // 2
+            if m == 0:
+                t = t1
+            elif m == 1:
+                t = t2
+            elif m == 2:
+                t = unit3(add3(t1, t2))[0]
+            elif m == 3:
+                t = unit3(sub3(t1, t2))[0]
+            else:
+                t = unit3(cross3(ua if m == 4 else ub, n))[0]
+            trial = unit3(add3(n, scale3(step if j % 2 == 0 else -step, t)))[0]
+            g = round_gap(d, ua, ra, ha, ub, rb, hb, capsule, trial)
+            if g > bf:
+                bn, bf, moved = trial, g, True
+        if moved:
+            n, f = bn, bf
+        else:
+            step *= 0.5
+    return n, f
+
+
+@kernel
+def round_support(c, u, r, hl, n, capsule):
+    """The ends of the support of a cylinder or capsule along n: a line (its side) when n lies across the axis
+    within FLAT, else a point (a rim point, a cap's centre, a capsule's end)."""
+    w = dot3(u, n)
+    across = unit3(sub3(n, scale3(w, u)))[0]
+    half = scale3(hl, u)
+    if capsule:
+        if abs(w) < FLAT:
+            return add3(sub3(c, half), scale3(r, n)), add3(add3(c, half), scale3(r, n))
+        p = add3(add3(c, scale3(sign(w), half)), scale3(r, n))
+        return p, p
+    if abs(w) < FLAT:
+        return add3(sub3(c, half), scale3(r, across)), add3(add3(c, half), scale3(r, across))
+    p = add3(c, scale3(sign(w), half))
+    if abs(w) < 1.0 - 1e-12:
+        p = add3(p, scale3(r, across))
+    return p, p
+
+
+@kernel
+def point_round(p, c, u, r, hl, capsule):
+    """Signed distance of p to a solid cylinder or capsule."""
+    if capsule:
+        half = scale3(hl, u)
+        return norm3(sub3(p, closest_on_segment(p, sub3(c, half), add3(c, half)))) - r
+    return point_cylinder(p, c, u, r, hl)[0]
+
+
+@kernel
+def round_pair(shapes, a, b, y, R, sink, capsule):
+    """Cylinder a against cylinder b, or capsule b when `capsule` (the docstring above)."""
+    ca, ua, ra, ha = row3(y, a, 0), col3(R, a, 2), shapes.radius[a], shapes.half_length[a]
+    cb, ub, rb, hb = row3(y, b, 0), col3(R, b, 2), shapes.radius[b], shapes.half_length[b]
+    d = sub3(ca, cb)
+    a0, a1 = sub3(ca, scale3(ha, ua)), add3(ca, scale3(ha, ua))
+    b0, b1 = sub3(cb, scale3(hb, ub)), add3(cb, scale3(hb, ub))
+    # candidates: keep the best three, refine each
+    n1, n2, n3 = UP, UP, UP
+    f1, f2, f3 = -1e300, -1e300, -1e300
+    for k in range(9):
+        if k == 0:
+            n, ok = ua, True
+        elif k == 1:
+            n, ok = ub, True
+        elif k == 2:
+            n, length = unit3(cross3(ua, ub))
+            ok = length > 1e-9
+        elif k == 3:
+            pa, pb = segment_segment(a0, a1, b0, b1)
+            n, length = unit3(sub3(pa, pb))
+            ok = length > 1e-12
+        elif k == 4:
+            n, length = unit3(d)
+            ok = length > 1e-12
+        else:  # 5-8: each cap centre of a (of b) to the other body's axis
+            e = k - 5
+            if e < 2:
+                q = a0 if e == 0 else a1
+                n, length = unit3(sub3(q, closest_on_segment(q, b0, b1)))
+            else:
+                q = b0 if e == 2 else b1
+                n, length = unit3(sub3(closest_on_segment(q, a0, a1), q))
+            ok = length > 1e-12
+        if not ok:
+            continue
+        g = round_gap(d, ua, ra, ha, ub, rb, hb, capsule, n)
+        if g > f1:
+            n1, f1, n2, f2, n3, f3 = n, g, n1, f1, n2, f2
+        elif g > f2:
+            n2, f2, n3, f3 = n, g, n2, f2
+        elif g > f3:
+            n3, f3 = n, g
+    best, nb = -1e300, UP
+    for s in range(3):
+        n0, g0 = (n1, f1) if s == 0 else ((n2, f2) if s == 1 else (n3, f3))
+        if g0 > -1e299:
+            n, g = refine(d, ua, ra, ha, ub, rb, hb, capsule, n0, g0)
+            if g > best:
+                best, nb = g, n
+    n = nb if dot3(nb, d) >= 0.0 else scale3(-1.0, nb)
+    depth = -best
+    if best > sink[6]:  # apart by more than the margin (written only with margin = inf)
+        return across_point(ca, ua, ra, ha, cb, ub, rb, hb, capsule, sink, n, depth, APART, 0)
+    # side by side
+    if (norm3(cross3(ua, ub)) < SIDE and abs(dot3(ua, n)) < SIDE and abs(dot3(ub, n)) < SIDE):
+        t0, t1 = dot3(sub3(b0, a0), ua), dot3(sub3(b1, a0), ua)
+        s0, s1 = clamp(min(t0, t1), 0.0, 2.0 * ha), clamp(max(t0, t1), 0.0, 2.0 * ha)
+        if s1 - s0 > 1e-9:
+            k = 0
+            for e in range(2):
+                pa = add3(a0, scale3(s0 if e == 0 else s1, ua))
+                pb = closest_on_segment(pa, b0, b1)
+                dist = norm3(sub3(pa, pb))
+                h = ra + rb - dist
+                # midway between a's surface (pa - n ra) and b's (pb + n rb)
+                p = scale3(0.5, add3(sub3(pa, scale3(ra, n)), add3(pb, scale3(rb, n))))
+                k = emit(sink, k, p, n, h, e)
+            return k
+    kept, top = 0, -1e300
+    for body in range(2):
+        if body == 1 and capsule:
+            for e in range(2):
+                end = b0 if e == 0 else b1
+                sd, surface = point_cylinder(end, ca, ua, ra, ha)
+                # midway between the surface point nearest the end's centre and the sphere's deepest point, along
+                # the cylinder's outward normal there (n when the centre is on the surface)
+                out, length = unit3(sub3(end, surface) if sd >= 0.0 else sub3(surface, end))
+                if length < 1e-12:
+                    out = n
+                h = rb - sd
+                top = max(top, h)
+                kept = emit(sink, kept, scale3(0.5, add3(surface, sub3(end, scale3(rb, out)))), n, h, 8 + 4 + e)
+            continue
+        c, u, r, hl = (ca, ua, ra, ha) if body == 0 else (cb, ub, rb, hb)
+        toward_other = scale3(-1.0, n) if body == 0 else n
+        w = dot3(u, toward_other)
+        down, length = unit3(sub3(toward_other, scale3(w, u)))
+        if length < 1e-9:
+            down = perpendicular(u)
+        side = cross3(u, down)
+        for i in range(8):
+            q, cap = i % 4, i // 4  # cap 0: -hl, 1: +hl
+            facing = abs(w) > FACING and (cap == 1) == (w > 0.0)
+            if q > 0 and not facing:
+                continue
+            p = add3(add3(c, scale3(hl if cap == 1 else -hl, u)),
+                     scale3(r if q < 2 else -r, down if q % 2 == 0 else side))
+            if body == 0:
+                h = -point_round(p, cb, ub, rb, hb, capsule)
+                point = add3(p, scale3(0.5 * h, n))
+            else:
+                h = -point_cylinder(p, ca, ua, ra, ha)[0]
+                point = sub3(p, scale3(0.5 * h, n))
+            top = max(top, h)
+            kept = emit(sink, kept, point, n, h, 8 * body + i)
+    small = min(min(ra, ha), min(rb, hb) if not capsule else rb)
+    if top < depth - TOL * small:
+        return across_point(ca, ua, ra, ha, cb, ub, rb, hb, capsule, sink, n, depth, ACROSS, kept)
+    return kept
+
+
+@kernel
+def across_point(ca, ua, ra, ha, cb, ub, rb, hb, capsule, sink, n, depth, feature, k):
+    """One contact at the given depth midway between the closest points of a's support along -n and b's along n."""
+    a0, a1 = round_support(ca, ua, ra, ha, scale3(-1.0, n), False)
+    b0, b1 = round_support(cb, ub, rb, hb, n, capsule)
+    pa, pb = segment_segment(a0, a1, b0, b1)
+    return emit(sink, k, scale3(0.5, add3(pa, pb)), n, depth, feature)
+
+
+@kernel
+def cylinder_cylinder(shapes, a, b, y, R, sink):
+    return round_pair(shapes, a, b, y, R, sink, False)
+
+
+@kernel
+def cylinder_capsule(shapes, a, b, y, R, sink):
+    return round_pair(shapes, a, b, y, R, sink, True)

@@ -13,14 +13,16 @@ Contact k of the pair goes to slot first + k of
     depth (C,)     penetration, m (negative: a gap)
     feature (C,)   int64, which feature made the point: the same while the same features touch, unique in the pair
                    (a box's corner; a capsule's end 0, 1, its nearest axis point 2; a clipped vertex: boxes.py;
-                   a rim point, clipped line end or box corner of a cylinder on a box: cylinders.py)
+                   a rim point, clipped line end or box corner of a cylinder on a box, a rim point or capsule
+                   end of a cylinder on a cylinder or capsule: cylinders.py)
 
 keeping the points with depth >= -margin (margin = inf: every test writes at least its closest feature, so
 -max(depth) is the pair's signed distance). Nothing is written at or past capacity; the count returned is the
 whole count, so first + count > capacity tells the caller to grow its buffers and call again.
 work (16,4) float64 is scratch for the box-box clipping (boxes.py); its contents on return mean nothing.
-Pairs without a closed form here (meshes, cylinder against capsule or cylinder, two planes) give 0:
-`closed_form` says which pairs are handled (cylinder-box too, which the Python phase leaves to fcl).
+Pairs without a closed form here (meshes, two planes) give 0: `closed_form` says which pairs are handled (every
+pair of sphere, box, capsule, cylinder and plane but plane-plane; cylinder against box, cylinder or capsule too,
+which the Python phase leaves to fcl).
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ from ..core.vec import add3, cross3, dot3, norm3, rotate, rotate_t, row3, scale3
 from .boxes import box_box, box_plane, capsule_box, sphere_box
 from .common import (clamp, closest_on_segment, col3, emit, flip, perpendicular, plane_of, segment, segment_segment,
                      spheres, unit3)
-from .cylinders import cylinder_box
+from .cylinders import cylinder_box, cylinder_capsule, cylinder_cylinder
 
 # cosines closer to 1 than this count as parallel segments (a capsule lying along another: two points)
 PARALLEL_COS = 1.0 - 1e-6
@@ -186,6 +188,10 @@ def ordered(shapes, ka, kb, a, b, y, R, sink, work):
             return cylinder_plane(shapes, a, b, y, R, sink)
         if kb == SHAPE_BOX:
             return cylinder_box(shapes, a, b, y, R, sink)
+        if kb == SHAPE_CYLINDER:
+            return cylinder_cylinder(shapes, a, b, y, R, sink)
+        if kb == SHAPE_CAPSULE:
+            return cylinder_capsule(shapes, a, b, y, R, sink)
     return -1
 
 
@@ -207,7 +213,8 @@ def pair_contacts(shapes, a, b, y, R, margin, point, normal, depth, feature, fir
 
 _HANDLED = {(SHAPE_SPHERE, k) for k in (SHAPE_SPHERE, SHAPE_PLANE, SHAPE_BOX, SHAPE_CAPSULE, SHAPE_CYLINDER)} | {
     (SHAPE_BOX, SHAPE_BOX), (SHAPE_BOX, SHAPE_PLANE), (SHAPE_CAPSULE, SHAPE_CAPSULE), (SHAPE_CAPSULE, SHAPE_PLANE),
-    (SHAPE_CAPSULE, SHAPE_BOX), (SHAPE_CYLINDER, SHAPE_PLANE), (SHAPE_CYLINDER, SHAPE_BOX)}
+    (SHAPE_CAPSULE, SHAPE_BOX), (SHAPE_CYLINDER, SHAPE_PLANE), (SHAPE_CYLINDER, SHAPE_BOX),
+    (SHAPE_CYLINDER, SHAPE_CYLINDER), (SHAPE_CYLINDER, SHAPE_CAPSULE)}
 
 
 def closed_form(kind_a: int, kind_b: int) -> bool:

@@ -95,6 +95,8 @@ class Collider:
         # now (an impact between two moving bodies: things falling on things make the contact set change at
         # every step, which this stage would follow one look at a time)
         self.may_capture, self.wants_capture = False, None
+        # bodies whose any impact hands over: with `jointed_strike` (Simulation sets it), those an active joint holds
+        self.jointed_strike, self.strikers = False, np.zeros(self.plan.n, bool)
         self.reach = reach(cplan.table)
         pairs = sim.compiled.model.pairs
         # the compiled step's pair of bodies (i, j), in either order
@@ -122,6 +124,10 @@ class Collider:
             joined = pair_keys(both, n)
         keys = self.cp.excluded_now(joined, t)
         self.broad.excluded = keys
+        self.strikers[:] = False
+        if self.jointed_strike and epoch is not None and epoch.active.size:
+            held = self.plan.constraints.row_bodies[epoch.active]
+            self.strikers[held[held >= 0]] = True
         pairs = self.sim.compiled.model.pairs
         now = is_excluded(pair_keys(np.stack([pairs.a, pairs.b], 1), n), keys)
         pairs.clear[:] = 0.0  # (a clearance holds only while its pair stays apart)
@@ -523,12 +529,14 @@ class Collider:
             return False
         s, plan = self.sim.state, self.plan
         u = row_velocity(contact_rows(contacts, s.x, contacts.normal), np.stack([contacts.a, contacts.b], 1), s.v, s.w)
-        moving = plan.dynamic[contacts.a] & plan.dynamic[contacts.b] & (u < -self.resting_speed)
+        both = plan.dynamic[contacts.a] & plan.dynamic[contacts.b]
+        moving = (both | self.strikers[contacts.a] | self.strikers[contacts.b]) & (u < -self.resting_speed)
         if not moving.any():
             return False
         k = int(np.argmax(moving))
         a, b = sorted((int(contacts.a[k]), int(contacts.b[k])))
-        self.wants_capture = f"an impact between moving bodies `{plan.names[a]}` and `{plan.names[b]}` at t = {t:.6g} s"
+        what = "moving bodies" if both[k] else "a jointed body and another"
+        self.wants_capture = f"an impact between {what} `{plan.names[a]}` and `{plan.names[b]}` at t = {t:.6g} s"
         return True
 
     def _at_rest(self, contacts) -> bool:

@@ -240,11 +240,12 @@ def test_resting_round_shapes():
 
 
 # the pairs the compiled phase handles beyond the Python one (which asks python-fcl for them)
-BEYOND_PYTHON = {(CYLINDER, BOX), (BOX, CYLINDER)}
+BEYOND_PYTHON = {(CYLINDER, BOX), (BOX, CYLINDER), (CYLINDER, CYLINDER), (CYLINDER, CAPSULE), (CAPSULE, CYLINDER)}
 
 
 def test_which_pairs_are_closed_forms():
-    """The Python phase's closed forms (but mesh-plane), and the cylinder-box pair, which it leaves to fcl."""
+    """The Python phase's closed forms (but mesh-plane), and cylinder against box, cylinder or capsule, which it
+    leaves to fcl: every pair of sphere, box, capsule, cylinder and plane but plane-plane."""
     kinds = (SPHERE, BOX, CAPSULE, CYLINDER, PLANE, MESH)
     for ka in kinds:
         for kb in kinds:
@@ -252,6 +253,7 @@ def test_which_pairs_are_closed_forms():
             assert closed_form(ka, kb) == (python or (ka, kb) in BEYOND_PYTHON), (ka, kb)
             if (ka, kb) in BEYOND_PYTHON:
                 assert not python
+            assert closed_form(ka, kb) == (MESH not in (ka, kb) and (ka, kb) != (PLANE, PLANE)), (ka, kb)
     table, x, R = resting(BOX, (0.1, 0.1, 0.1), 0.0)
     table.kind[1] = PLANE
     assert compiled(table, 0, 1, x, R)[4] == 0
@@ -489,3 +491,165 @@ def test_cylinder_box_features_are_stable():
         same += sorted(f0.tolist()) == sorted(f1.tolist())
     print(f"cylinder-box: {same}/200 kept their features")
     assert same >= 0.95 * 200
+
+
+# ---- cylinder against cylinder or capsule, against brute force -------------------------------------------------
+
+NAME = {CYLINDER: "cylinder", CAPSULE: "capsule"}
+
+def round_gaps(N, c, u, r, hl, x, v, rb, hb, capsule):
+    """The separation along each direction of N of a cylinder (c, u, r, hl) and a cylinder or capsule (x, v)."""
+    w, wb = np.abs(N @ u), np.abs(N @ v)
+    other = wb * hb + (rb if capsule else rb * np.sqrt(np.maximum(1 - wb * wb, 0)))
+    return np.abs(N @ (c - x)) - w * hl - r * np.sqrt(np.maximum(1 - w * w, 0)) - other
+
+
+def sd_capsule(p, c, u, r, hl):
+    s = np.clip((p - c) @ u, -hl, hl)
+    return np.linalg.norm(p - c - s[:, None] * u, axis=1) - r
+
+
+def round_largest_gap(args, rng):
+    """Minus the largest separation over 100k directions, the best 8 refined by a random search."""
+    i = np.arange(100000) + 0.5
+    polar, azimuth = np.arccos(1 - 2 * i / len(i)), np.pi * (1 + 5 ** 0.5) * i
+    N = np.stack((np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)), -1)
+    g = round_gaps(N, *args)
+    best = g.max()
+    for n in N[np.argsort(g)[-8:]]:
+        f, step = round_gaps(n[None], *args)[0], 0.02
+        while step > 1e-9:
+            trial = n + step * rng.normal(size=(64, 3))
+            trial /= np.linalg.norm(trial, axis=1, keepdims=True)
+            gt = round_gaps(trial, *args)
+            if gt.max() > f:
+                n, f = trial[np.argmax(gt)], gt.max()
+            else:
+                step *= 0.5
+        best = max(best, f)
+    return -best
+
+
+@pytest.mark.parametrize("other", [CYLINDER, CAPSULE])
+def test_cylinder_against_a_round_shape_agrees_with_brute_force(other):
+    """150 random poses, 3 mm deep to 5 mm apart: the deepest depth within 1e-4 m of the largest gap over 100k
+    directions (refined), every point's depth at most that; the other order gives the same points, the normals
+    reversed (two cylinders: the same points and depths); unit normals from b toward a, distinct features; at the
+    margin at most 8 points, each between the surfaces."""
+    rng = np.random.default_rng(17 + other)
+    worst = 0.0
+    counts = {}
+    for trial in range(150):
+        table = random_table([CYLINDER, other], rng)
+        x, R = random_pose(rng)
+        target = rng.uniform(-0.003, MARGIN)
+        for _ in range(8):
+            _p, n, d, _f, _c = compiled(table, 0, 1, x, R, margin=np.inf)
+            x[0] += n[np.argmax(d)] * (target + d.max())
+        p, n, d, f, count = compiled(table, 0, 1, x, R, margin=np.inf)
+        args = (x[0], R[0][:, 2], table.radius[0], table.half_length[0], x[1], R[1][:, 2], table.radius[1],
+                table.half_length[1], other == CAPSULE)
+        exact = round_largest_gap(args, rng)
+        worst = max(worst, abs(d.max() - exact))
+        assert d.max() == pytest.approx(exact, abs=1e-4), trial
+        assert d.max() <= exact + 1e-6
+        assert np.allclose(np.linalg.norm(n, axis=1), 1.0) and len(set(f.tolist())) == count
+        assert np.all(n @ (x[0] - x[1]) >= -1e-12)
+        p2, n2, d2, _f2, count2 = compiled(table, 1, 0, x, R, margin=np.inf)
+        if other == CAPSULE:  # the same test, its normals reversed
+            assert count2 == count and np.array_equal(d2, d) and np.array_equal(n2, -n) and np.array_equal(p2, p)
+        else:  # the test run with the roles swapped: the same depths and points in another order
+            i, i2 = np.lexsort(p.T), np.lexsort(p2.T)
+            assert count2 == count and np.allclose(d2[i2], d[i], atol=1e-9) and np.allclose(p2[i2], p[i], atol=1e-6)
+            assert np.allclose(n2, -n[0], atol=1e-6)
+        pk, _n, dk, _f, kept = compiled(table, 0, 1, x, R)
+        counts[kept] = counts.get(kept, 0) + 1
+        assert kept <= 8
+        # each point between the two surfaces: within its depth (+ 2 mm: the points are placed along the pair's
+        # normal, not each feature's own) of both
+        sa = sd_cylinder(pk, x[0], R[0], table.radius[0], table.half_length[0])
+        sb = (sd_capsule(pk, x[1], R[1][:, 2], table.radius[1], table.half_length[1]) if other == CAPSULE else
+              sd_cylinder(pk, x[1], R[1], table.radius[1], table.half_length[1]))
+        assert np.all(np.maximum(np.abs(sa), np.abs(sb)) <= np.abs(dk) + 2e-3), trial
+    print(f"cylinder-{NAME[other]}: max |depth - largest gap| {worst:.1e} m, counts at the margin {counts}")
+
+
+def round_table(kinds, sizes):
+    table = random_table(list(kinds), np.random.default_rng(0))
+    for i, (r, hl) in enumerate(sizes):
+        table.radius[i], table.half_length[i] = r, hl
+    return table
+
+
+ALONG_X = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])  # body z along world x
+
+
+def test_cylinders_side_by_side_standing_and_crossed():
+    """Lying side by side (parallel, one on the other): two points at the ends of the overlap; standing on
+    another's cap: the rim points (>= 3); crossed at right angles: one point; each 1e-4 m deep, normal up."""
+    # a (r 0.05, hl 0.2) on b (r 0.1, hl 0.3), both along x, a shifted 0.15 along x: overlap x in [-0.05, 0.3]
+    table = round_table((CYLINDER, CYLINDER), ((0.05, 0.2), (0.1, 0.3)))
+    x, R = np.array([[0.15, 0.15 - 1e-4, 0.0], [0.0, 0.0, 0.0]]), np.stack((ALONG_X, ALONG_X))
+    p, n, d, _f, count = compiled(table, 0, 1, x, R)
+    assert count == 2 and np.allclose(d, 1e-4, atol=1e-12) and np.allclose(n, (0, 1, 0))
+    assert np.allclose(np.sort(p[:, 0]), (-0.05, 0.3), atol=1e-12) and np.allclose(p[:, 1], 0.1 - 0.5e-4)
+    # standing: a (r 0.05, hl 0.1) upright on b's top cap (b upright too, r 0.2, hl 0.1), off centre
+    table = round_table((CYLINDER, CYLINDER), ((0.05, 0.1), (0.2, 0.1)))
+    x, R = np.array([[0.07, 0.2 - 1e-4, 0.03], [0.0, 0.0, 0.0]]), np.stack((UPRIGHT, UPRIGHT))
+    p, n, d, _f, count = compiled(table, 0, 1, x, R)
+    assert count >= 3 and np.allclose(d, 1e-4, atol=1e-9) and np.allclose(n, (0, 1, 0), atol=1e-7)
+    assert np.allclose(np.hypot(p[:, 0] - 0.07, p[:, 2] - 0.03), 0.05, atol=1e-7)
+    # crossed: a along x on b along z
+    table = round_table((CYLINDER, CYLINDER), ((0.05, 0.2), (0.1, 0.3)))
+    x, R = np.array([[0.0, 0.15 - 1e-4, 0.0], [0.0, 0.0, 0.0]]), np.stack((ALONG_X, np.eye(3)))
+    p, n, d, _f, count = compiled(table, 0, 1, x, R)
+    assert count == 1 and d[0] == pytest.approx(1e-4, abs=1e-9) and np.allclose(n[0], (0, 1, 0), atol=1e-6)
+    assert np.allclose(p[0], (0.0, 0.1 - 0.5e-4, 0.0), atol=1e-6)
+    _p2, n2, d2, _f, count2 = compiled(table, 1, 0, x, R)
+    assert count2 == 1 and np.allclose(n2, -n) and np.allclose(d2, d)
+
+
+def test_capsule_across_a_cylinder_and_pressing_into_its_cap():
+    """A capsule lying across a lying cylinder: one point on top; along it: two; a capsule standing on a standing
+    cylinder's cap, its end 1e-3 m in: one point, normal along the axis."""
+    table = round_table((CAPSULE, CYLINDER), ((0.03, 0.2), (0.1, 0.3)))
+    x, R = np.array([[0.0, 0.13 - 1e-4, 0.0], [0.0, 0.0, 0.0]]), np.stack((ALONG_X, np.eye(3)))
+    p, n, d, _f, count = compiled(table, 0, 1, x, R)
+    assert count == 1 and d[0] == pytest.approx(1e-4, abs=1e-9) and np.allclose(n[0], (0, 1, 0), atol=1e-6)
+    assert np.allclose(p[0], (0.0, 0.1 - 0.5e-4, 0.0), atol=1e-6)
+    R[0] = np.eye(3)  # along it
+    p, n, d, _f, count = compiled(table, 0, 1, x, R)
+    assert count == 2 and np.allclose(d, 1e-4, atol=1e-12) and np.allclose(n, (0, 1, 0))
+    assert np.allclose(np.sort(p[:, 2]), (-0.2, 0.2), atol=1e-12)
+    table = round_table((CAPSULE, CYLINDER), ((0.03, 0.1), (0.2, 0.1)))
+    x, R = np.array([[0.05, 0.1 + 0.1 + 0.03 - 1e-3, -0.02], [0.0, 0.0, 0.0]]), np.stack((UPRIGHT, UPRIGHT))
+    for a, b, s in ((0, 1, 1.0), (1, 0, -1.0)):
+        p, n, d, _f, count = compiled(table, a, b, x, R)
+        assert count == 1 and d[0] == pytest.approx(1e-3, abs=1e-12) and np.allclose(n[0], (0, s, 0), atol=1e-7)
+        assert np.allclose(p[0], (0.05, 0.1 - 0.5e-3, -0.02), atol=1e-7)
+
+
+@pytest.mark.parametrize("other", [CYLINDER, CAPSULE])
+def test_cylinder_round_features_are_stable(other):
+    """Shallow random poses and cylinders resting on the other (tilted up to 0.5 degree): the same features after
+    a 1e-7 m, 1e-6 rad move."""
+    rng = np.random.default_rng(19)
+    same = 0
+    for trial in range(200):
+        table = random_table([CYLINDER, other], rng)
+        x, R = random_pose(rng)
+        if trial % 2:
+            R[1] = UPRIGHT if trial % 4 == 1 else np.eye(3)
+            R[0] = quat_to_matrix(np.array([1.0, *rng.normal(0.0, math.radians(0.25), 3)])) @ R[1]
+            x[0] = (rng.uniform(-0.05, 0.05), 1.0, rng.uniform(-0.05, 0.05))
+        target = rng.uniform(-0.003, 0.0)
+        for _ in range(8):
+            _p, n, d, _f, _c = compiled(table, 0, 1, x, R, margin=np.inf)
+            x[0] += n[np.argmax(d)] * (target + d.max())
+        f0 = compiled(table, 0, 1, x, R)[3]
+        R2 = R.copy()
+        R2[0] = quat_to_matrix(np.array([1.0, *rng.normal(0.0, 0.5e-6, 3)])) @ R[0]
+        f1 = compiled(table, 0, 1, x + rng.normal(0.0, 1e-7, x.shape), R2)[3]
+        same += sorted(f0.tolist()) == sorted(f1.tolist())
+    print(f"cylinder-{NAME[other]}: {same}/200 kept their features")
+    assert same >= 0.9 * 200

@@ -55,7 +55,8 @@ def test_cradle_passes_the_strike_to_the_last_ball(solver):
     # the whole row is one strike: four impacts at one time, each with the same impulse
     assert [e["bodies"] for e in events] == [["ball0", "ball1"], ["ball1", "ball2"], ["ball2", "ball3"],
                                              ["ball3", "ball4"]]
-    assert len({e["time"] for e in events}) == 1
+    times = [e["time"] for e in events]
+    assert max(times) - min(times) < 1e-9  # (the procedural plan's capturing path dates them to rounding)
     assert all(e["kind"] == "impact" for e in events)
 
 

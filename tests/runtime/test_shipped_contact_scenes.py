@@ -93,7 +93,8 @@ def test_heap_comes_to_rest():
     assert v[boxes].max() < 1e-3 and w[boxes].max() < 1e-2, (v[boxes].max(), w[boxes].max())
     assert v[moving].max() < 0.05
     rolling = [i for i in moving if v[i] > 0.005]
-    assert all(scene.bodies[i].shape.type == "sphere" for i in rolling), [scene.bodies[i].name for i in rolling]
+    assert all(scene.bodies[i].shape.type in ("sphere", "capsule") for i in rolling), \
+        [scene.bodies[i].name for i in rolling]
     # the kinetic energy left is a hundred-thousandth of what the fall made available
     m = np.array([scene.bodies[i].mass for i in moving])
     kinetic = 0.5 * (m * v[moving] ** 2).sum()
@@ -163,9 +164,9 @@ def test_the_dominoes_strike_one_another_in_order_and_each_strike_clicks():
 def test_the_wave_runs_at_a_constant_speed():
     _, _, _, first = dominoes()
     speed = SPACING / np.diff(first)
-    # the wave starts slow (0.55 m/s between the first two pairs) and speeds up over about eight dominoes; from
-    # the ninth pair on it runs at 1.414 m/s = 1.43 sqrt(g H) (measured 1.408 to 1.435 m/s)
-    steady = speed[8:]
+    # the wave starts slow (0.55 m/s between the first two pairs) and speeds up over about ten dominoes; over the
+    # last eight pairs it runs at 1.41 m/s = 1.43 sqrt(g H) (measured 1.39 to 1.42 m/s)
+    steady = speed[-8:]
     assert np.abs(steady / steady.mean() - 1).max() < 0.02, speed
     assert 1.2 < steady.mean() / math.sqrt(G * HEIGHT) < 1.7
     assert np.all(np.diff(speed[:7]) > 0)
