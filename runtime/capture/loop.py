@@ -7,7 +7,8 @@ forces, so contacts that appear, part, stick or slide never leave the loop (PHYS
     3. the contact solve (solve.py): impacts in generations, then impulses so that v+ meets the contacts (friction
        included) and the joints' rows (joints.py), one Gauss-Seidel sweep over both after another, warm-started
     4. x += h v+; the free rotation of w+ over h (energy-keeping, procedural/substep.py); the position pass's
-       pseudo-velocities move the positions only                              (drift)
+       pseudo-velocities move the positions only (drift); the joints projected back on their manifold as the exact
+       path's semi-implicit Euler projects them (dynamics/projection.py)
     5. checks: interpenetration beyond the limit, energy created by the contacts (counted, the worst kept with
        its time and pair), a body that ran away (the call ends); events: impacts and, at frames, pressing pairs
 
@@ -23,6 +24,7 @@ from ..core.jit import entry, kernel
 from ..core.record import DONE, RUNAWAY_BODY, RUNAWAY_CONSTRAINT_ERROR, RUNAWAY_ROW, constraint_error, trace_step
 from ..core.rows import evaluate_rows
 from ..core.timetable import TIME
+from ..dynamics.projection import project
 from ..procedural.loop import step_forces
 from ..procedural.substep import _free_rotation
 from .broad import find_pairs, travel
@@ -234,6 +236,10 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
             separate(m.bodies, s.inv_inertia, ct, pseudo, h)
     _drift(m, s, y, pseudo, moved, h)
     place_kinematic(m.kinematic, table, j + grid, y)
+    if jointed:
+        # the joints exactly on their manifold, as the exact path's semi-implicit Euler has them (SHAKE's impulse:
+        # dynamics/projection.py): the sweeps leave gears and cords a few mm off
+        project(m, act, s, y, table, j + grid, True, h)
     _keep_old(ct)
     return True
 
