@@ -492,7 +492,8 @@ class SceneLowerer:
                                      props.node("gain"), "0 dB keeps the level, -6 dB halves it, +6 dB doubles it")
         return 10.0 ** (number / 20.0)
 
-    def _exclusion(self, decl: Decl) -> ir.Exclusion:
+    def _bodies_and_window(self, decl: Decl) -> tuple:
+        """(the body names, their trees, the window's tree or None) of `exclude` or `collide`."""
         from lark import Tree
 
         children = list(decl.tree.children)
@@ -500,7 +501,10 @@ class SceneLowerer:
         if children and isinstance(children[-1], Tree) and children[-1].data in ("during", "window_from",
                                                                                "window_until"):
             window = children.pop()
-        names = [self.resolve_body(t, decl) for t in children]
+        return [self.resolve_body(t, decl) for t in children], children, window
+
+    def _exclusion(self, decl: Decl) -> ir.Exclusion:
+        names, _, window = self._bodies_and_window(decl)
         if len(names) < 2:
             raise decl.lowerer.fail("`exclude` names at least two bodies", decl.tree)
         start, end = self.constraints.window(window, decl, "exclusion") if window is not None else (-math.inf, math.inf)
@@ -509,14 +513,7 @@ class SceneLowerer:
     def _collide(self, decl: Decl, time: ir.Timeline) -> ir.Collide:
         """`collide a, b, ... [window]`: every pair among the bodies collides, even while a constraint joins it.
         Each pair must be able to touch: both bodies collide, one can move."""
-        from lark import Tree
-
-        children = list(decl.tree.children)
-        window = None
-        if children and isinstance(children[-1], Tree) and children[-1].data in ("during", "window_from",
-                                                                               "window_until"):
-            window = children.pop()
-        names = [self.resolve_body(t, decl) for t in children]
+        names, children, window = self._bodies_and_window(decl)
         if len(names) < 2:
             raise decl.lowerer.fail("`collide` names at least two bodies", decl.tree,
                                     "write `collide a, b`: the pairs among them collide even while a constraint "

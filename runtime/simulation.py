@@ -18,7 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .blowup import NumericalError, constraint_failure, failure
 from .core import data as D
+from .core.bodies import RUNAWAY_SPEED  # noqa: F401 (callers of the step loop import it from here)
 from .core.build import CompiledPlan
 from .core import model as M
 from .core.entries import measure, row_errors, state_constraint_error, state_energy
@@ -28,46 +30,8 @@ from .core.record import CONTACT, DONE, RUNAWAY_BODY
 from .kinematics import on_path, window_switches
 from .plan import Plan, PlanOptions, compile_plan
 
-# compatibility name for callers of the step loop
-RUNAWAY_SPEED = 1e6
 # a run that hands its frames to a caller one by one (watch, live) steps at most this many steps per kernel call
 ON_FRAME_STEPS = 2000
-
-
-# omega h within which an explicit step holds a row assembling at omega (critically damped: a double root at -omega,
-# which takes less than the 2.78 of RK4's real axis). Measured on a nail closing 10 cm at 200 Hz at 20 ms
-# (tests/runtime/test_contact_fixes.py): RK4 runs at omega h = 2 (by its stabilization or its step) and blows up at
-# 2.76; half that for midpoint and Euler
-STABLE_OMEGA_H = {"rk4": 2.0, "midpoint": 1.0, "euler": 1.0}
-
-
-def _size(vector) -> float:
-    """|vector| without overflow in its squares (a runaway speed of 1e300 m/s is 1e300, not inf)."""
-    largest = float(np.max(np.abs(vector)))
-    if not 0.0 < largest < math.inf:
-        return largest
-    return largest * float(np.linalg.norm(np.asarray(vector) / largest))
-
-
-def _down(value: float) -> float:
-    """value rounded down to two significant digits (a limit said in round figures stays within it)."""
-    if not value > 0.0:
-        return value
-    scale = 10.0 ** (math.floor(math.log10(value)) - 1)
-    return math.floor(value / scale) * scale
-
-
-class NumericalError(Exception):
-    """The simulation became meaningless: says when (time and step) and what (body or constraint), with the units of
-    what was measured; `hint` says what the measurements point to (run.py prints it after the message)."""
-
-    def __init__(self, time: float, step: int, culprit: str, detail: str, source: str | None = None,
-                 hint: str | None = None):
-        self.time, self.step, self.culprit, self.detail = time, step, culprit, detail
-        self.source = source  # "file:line:col" of the culprit's declaration, when known
-        self.hint = hint
-        declared = f" (declared at {source})" if source else ""
-        super().__init__(f"numerical blow-up at t = {time:.6g} s (step {step}): {culprit}{declared}: {detail}")
 
 
 @dataclass
@@ -189,7 +153,7 @@ class Simulation:
         """Constraint error now; a runaway error stops the run naming the constraint."""
         error, row = self.constraint_errors()
         if not np.isfinite(error) or error > RUNAWAY_CONSTRAINT_ERROR:
-            raise self._constraint_failure(row, error)
+            raise constraint_failure(self, row, error)
         return error
 
     def rank_deficient(self) -> bool:
@@ -577,6 +541,9 @@ class Simulation:
                  else "no impact between moving bodies")
         return {"path": "exact", "why": self.capture_refused or quiet}
 
+    def _failure(self) -> NumericalError:
+        return failure(self)
+
     def _place_kinematic(self) -> None:
         kin = self.compiled.model.kinematic
         if len(kin.body):
@@ -587,147 +554,3 @@ class Simulation:
                 y = self.state.y[b]
                 y[0:3], y[7:10] = table[0, c + M.KIN_X:c + M.KIN_X + 3], table[0, c + M.KIN_V:c + M.KIN_V + 3]
                 y[3:7], y[10:13] = table[0, c + M.KIN_Q:c + M.KIN_Q + 4], table[0, c + M.KIN_W:c + M.KIN_W + 3]
-
-    def _failure(self) -> NumericalError:
-        """The blow-up the step loop stopped on (self._status), measured: what ran away, in its units, and what
-        acted on it."""
-        code, step, which = (int(v) for v in self._status[:3])
-        if code == RUNAWAY_BODY:
-            return self._body_failure(which)
-        error, _ = self.constraint_errors()
-        return self._constraint_failure(which, error)
-
-    def _body_failure(self, b: int) -> NumericalError:
-        s, name = self.state, self.plan.names[b]
-        y = s.y[b]
-        v, w = _size(y[D.V]), _size(y[D.W])
-        parts = (("position", D.X, "m"), ("orientation", D.Q, ""), ("velocity", D.V, "m/s"),
-                 ("angular velocity", D.W, "rad/s"))
-        broken = [label for label, columns, _ in parts if not np.all(np.isfinite(y[columns]))]
-        if broken:
-            detail = f"its {' and '.join(broken)} {'is' if len(broken) == 1 else 'are'} no longer finite"
-        elif np.any(np.abs(y[D.V]) >= RUNAWAY_SPEED):
-            detail = f"its speed passed {RUNAWAY_SPEED:g} m/s (|v| = {v:.3g} m/s)"
-        else:
-            detail = f"its angular speed passed {RUNAWAY_SPEED:g} rad/s (|w| = {w:.3g} rad/s)"
-        held, touching = self._acting_on(b)
-        acting = [f"constraint `{c}`" for c in held] + [f"contact with `{o}`" for o in touching]
-        if acting:
-            detail += f"; acting on it: {', '.join(acting)}"
-        return NumericalError(s.t, s.steps, f"body `{name}`", detail, self.plan.scene.bodies[b].source,
-                              self._body_hint(b, held, touching))
-
-    def _acting_on(self, b: int) -> tuple:
-        """([constraints], [bodies in contact]) acting on body b in the rows of the last step, by name."""
-        held, touching = [], []
-        act, c = self._act, self.plan.constraints
-        if act is not None and c is not None:
-            rows = act.rows[act.rows < len(c.row_constraint)]
-            on = rows[(c.row_bodies[rows] == b).any(axis=1)]
-            held = list(dict.fromkeys(c.names[i] for i in c.row_constraint[on].tolist()))
-        if self.collider is not None:
-            for contact in self.collider.lasting.contacts.values():
-                if b in (contact.a, contact.b):
-                    other = contact.b if contact.a == b else contact.a
-                    label = self.plan.names[other] if other >= 0 else "the world"
-                    if label not in touching:
-                        touching.append(label)
-        return held, touching
-
-    def _assembling(self, names: list) -> list:
-        """[(constraint, omega rad/s, f Hz)] of the named constraints whose rows follow a stabilization curve in
-        the last step (not held; every row under `stabilization baumgarte`), stiffest first."""
-        act, c = self._act, self.plan.constraints
-        if act is None or c is None or not names:
-            return []
-        cons = self.compiled.model.constraints
-        found = {}
-        for i, r in enumerate(act.rows.tolist()):
-            if r >= len(c.row_constraint) or (act.held[i] and self.plan.scene.solver.stabilization != "baumgarte"):
-                continue
-            name = c.names[c.row_constraint[r]]
-            if name in names:
-                found[name] = max(found.get(name, 0.0), math.sqrt(max(float(cons.ks[r]), 0.0)))
-        return sorted(((n, om, om / (2 * math.pi)) for n, om in found.items()), key=lambda e: -e[1])
-
-    def _stiffness_hint(self, names: list) -> str | None:
-        """What the step does to a row assembling at omega: omega h beyond the integrator's stable reach."""
-        options = self.plan.scene.solver
-        if self.plan.solver != "dynamics":
-            return None
-        reach = STABLE_OMEGA_H.get(options.integrator, 2.0)
-        h = self.plan.step
-        for name, omega, frequency in self._assembling(names):
-            if omega * h <= reach:
-                continue
-            refined = (options.integrator == "rk4" and options.tolerance > 0)
-            control = (" (the error control refines a step 16 times at most)" if refined else
-                       " (`tolerance 0`: the error control is off)" if options.integrator == "rk4" else "")
-            return (f"constraint `{name}` assembles at {frequency:.3g} Hz (omega = {omega:.3g} rad/s): omega h = "
-                    f"{omega * h:.3g} at the {h * 1e3:.3g} ms step{control}, beyond the {reach:g} within which "
-                    f"{options.integrator} holds it; give it `stabilize {_down(reach / (2 * math.pi * h)):g} Hz` "
-                    f"or less, or a step of {_down(reach / omega * 1e3):g} ms or less")
-        return None
-
-    def _body_hint(self, b: int, held: list, touching: list) -> str:
-        s, name = self.state, self.plan.names[b]
-        start = self._initial[b]
-        v0, w0 = _size(start[D.V]), _size(start[D.W])
-        if not (v0 < RUNAWAY_SPEED and w0 < RUNAWAY_SPEED):
-            return (f"`{name}` starts at |v| = {v0:.3g} m/s, |w| = {w0:.3g} rad/s, beyond the {RUNAWAY_SPEED:g} "
-                    f"a run allows: give it a slower `velocity` or `spin`")
-        stiff = self._stiffness_hint(held)
-        if stiff is not None:
-            return stiff
-        said = ""
-        frame = self._last_frame_speeds(b)
-        if frame is not None:
-            t, v, w = frame
-            said = (f"at the last frame (t = {t:.6g} s) `{name}` moved at {v:.3g} m/s and turned at {w:.3g} rad/s, "
-                    f"{s.t - t:.3g} s before the blow-up; ")
-        acting = ", ".join([f"constraint `{c}`" for c in held] + [f"the contact with `{o}`" for o in touching])
-        if acting:
-            return (f"{said}look at what acted on it then: {acting} (`isaac run --until {s.t:.6g}` and the "
-                    f"viewer show the motion up to it)")
-        return (f"{said}nothing held or touched it: look at the forces, springs and winds on it "
-                f"(`isaac run --until {s.t:.6g}` and the viewer show the motion up to it)")
-
-    def _last_frame_speeds(self, b: int):
-        """(time, |v| m/s, |w| rad/s) of body b at the last frame handed on, or None."""
-        last = self._last_delivered
-        if last is None:
-            return None
-        t, y = last
-        return t, _size(y[b, D.V]), _size(y[b, D.W])
-
-    def _constraint_failure(self, row: int, error: float) -> NumericalError:
-        c = self.plan.constraints
-        rows = c.row_constraint if c is not None else ()
-        if 0 <= row < len(rows):
-            name = c.names[rows[row]]
-            source = next((k.source for k in self.plan.scene.constraints if k.name == name), None)
-            culprit = f"constraint `{name}`"
-        else:  # a contact's row
-            name, source, culprit = None, None, f"contact {self._contact_pair(row)}"
-        J = self.compiled.scratch.J
-        unit = "rad" if 0 <= row < len(J) and not np.any(J[row, :, :3]) else "m"
-        hint = self._stiffness_hint([name]) if name is not None else None
-        if hint is None:
-            hint = (f"a {'joint' if name else 'contact'} more than {RUNAWAY_CONSTRAINT_ERROR:g} {unit} apart is no "
-                    f"longer held: look at what pulls it apart (`isaac run --until {self.state.t:.6g}` and the "
-                    f"viewer show the motion up to it)")
-        return NumericalError(self.state.t, self.state.steps, culprit, source=source, hint=hint,
-                              detail=f"its error grew to {error:.3g} {unit}")
-
-    def _contact_pair(self, row: int) -> str:
-        """`a`-`b` of the contact whose row is global row `row`, or `?`."""
-        if self.collider is None or row < 0:
-            return "`?`"
-        k = int(self.compiled.model.constraints.row_instance[row])
-        for key, instance in self.collider.lasting.instance_of.items():
-            if instance == k:
-                contact = self.collider.lasting.contacts.get(key)
-                if contact is not None:
-                    names = [self.plan.names[i] if i >= 0 else "world" for i in (contact.a, contact.b)]
-                    return f"`{names[0]}`-`{names[1]}`"
-        return "`?`"

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from ..core.jit import kernel
-from ..core.model import SHAPE_BOX, SHAPE_CAPSULE, SHAPE_CYLINDER, SHAPE_NONE, SHAPE_PLANE, SHAPE_SPHERE
+from ..core.model import SHAPE_CAPSULE, SHAPE_CYLINDER, SHAPE_NONE, SHAPE_PLANE, SHAPE_SPHERE
 
 
 @kernel
@@ -83,16 +83,16 @@ def _sort(sw):
 
 
 @kernel
-def is_excluded(keys, key):
-    """Whether key is in the sorted array keys (binary search)."""
-    lo, hi = 0, len(keys)
+def find_key(keys, count, key):
+    """Index of key in the sorted keys[:count] (binary search), or -1."""
+    lo, hi = 0, count
     while lo < hi:
         mid = (lo + hi) // 2
         if keys[mid] < key:
             lo = mid + 1
         else:
             hi = mid
-    return lo < len(keys) and keys[lo] == key
+    return lo if lo < count and keys[lo] == key else -1
 
 
 @kernel
@@ -101,7 +101,7 @@ def _add_pair(sw, dynamic, n, i, j):
     if not dynamic[i] and not dynamic[j]:
         return
     a, b = min(i, j), max(i, j)
-    if is_excluded(sw.excluded, a * n + b):
+    if find_key(sw.excluded, len(sw.excluded), a * n + b) >= 0:
         return
     c = sw.count[0]
     if c < len(sw.pairs):

@@ -28,7 +28,7 @@ from ..dynamics.projection import project
 from ..procedural.loop import step_forces
 from ..procedural.substep import _free_rotation
 from .broad import find_pairs, travel
-from .data import EVENT_WIDTH, IMPACT, PRESSING
+from .data import IMPACT, PRESSING
 from .narrow import pair_contacts
 from .joints import close_joints, prepare_joints, sweep_joints
 from .solve import POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, prepare, separate, sweep, work
@@ -124,7 +124,7 @@ def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach):
 
 
 @kernel
-def _pair_events(ct, ev, t, h, resting, pressing):
+def _pair_events(ct, ev, t, h, pressing):
     """One event per pair of consecutive contacts: its impacts now (pressing False), or, at a frame, its impulse
     since the last frame (pressing True; acc reset)."""
     c = 0
@@ -135,7 +135,6 @@ def _pair_events(ct, ev, t, h, resting, pressing):
             end += 1
         impulse, px, py, pz, nx, ny, nz, slip, approach, soonest = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, h
         for i in range(c, end):
-            un = ct.before[i, 0]
             if pressing:
                 p = ct.acc[i]
                 ct.acc[i] = 0.0
@@ -225,7 +224,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
     _check(ct, chk, y, t, depth_limit, energy_tol)
     for c in range(found):
         ct.acc[c] += ct.lam[c, 0] + ct.hit[c]
-    _pair_events(ct, ev, t, h, resting, False)
+    _pair_events(ct, ev, t, h, False)
     # the position pass: contacts deeper than the slop apart, the joints' errors closed, positions only
     moved = jointed or deep(ct)
     if moved:
@@ -279,7 +278,7 @@ def run(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, h, steps, grid, 
             if not frames.error[f] <= RUNAWAY_CONSTRAINT_ERROR:
                 status[0], status[1], status[2] = RUNAWAY_ROW, step + 1, frames.worst[f]
                 return step + 1
-            _pair_events(ct, ev, table[j + grid, TIME], h, resting, True)
+            _pair_events(ct, ev, table[j + grid, TIME], h, True)
             for c in range(ct.count[2]):
                 ct.old_acc[c] = 0.0  # (every pressing pair's impulse was handed on: the next frame counts anew)
             f += 1

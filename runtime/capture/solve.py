@@ -32,6 +32,7 @@ import math
 
 from ..core.jit import kernel
 from ..core.vec import cross3, dot3, rotate, scale3, sub3
+from .broad import find_key
 from .data import FEATURES
 
 # sweeps of impacts in generations per step, at most (then restitution 0); sweeps over one pair's points
@@ -105,19 +106,6 @@ def push(bodies, invI, y, col, a, b, ra, rb, d, p):
 
 
 @kernel
-def _find(keys, count, key):
-    """Index of key in the sorted keys[:count], or -1."""
-    lo, hi = 0, count
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if keys[mid] < key:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo if lo < count and keys[lo] == key else -1
-
-
-@kernel
 def _row3(a, c):
     return (a[c, 0], a[c, 1], a[c, 2])
 
@@ -145,7 +133,7 @@ def prepare(bodies, invI, ct, y, n, h, resting):
         ct.key[c] = (a * n + b) * FEATURES + ct.feature[c]
     # the warm start after every contact's velocities before were measured (they are the step's own)
     for c in range(count):
-        old = _find(ct.old_key, ct.count[2], ct.key[c])
+        old = find_key(ct.old_key, ct.count[2], ct.key[c])
         ct.acc[c] = ct.old_acc[old] if old >= 0 else 0.0
         for k in range(3):
             ct.lam[c, k] = ct.old_lam[old, k] if old >= 0 else 0.0
