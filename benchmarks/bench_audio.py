@@ -2,7 +2,7 @@
 
     python benchmarks/bench_audio.py [--seconds 20] [--csv out.csv] [--no-chimes] [--figure docs/figures/...png]
 
-1. "impacts + scrape" (SOUND.md, how to test 3): a fixed synthetic scene rendered without simulating:
+1. "impacts + scrape" (docs/design/sound.md#section-7, how to test 3): a fixed synthetic scene rendered without simulating:
    eight aluminium bars and plates (about 20 modes each) hit 400 times in --seconds, a steel block scraping a
    plank with explicit modes the whole time, and a gusty wind noise. Reports audio seconds per CPU second
    (the real-time factor) and modes x seconds per CPU second (every bank's modes times the audio length).

@@ -1,4 +1,4 @@
-"""Benchmark of the multiplier solvers (runtime/linsolve.py): per-solve wall time, assembly included.
+"""Benchmark of the multiplier solvers (benchmarks/linsolve.py): per-solve wall time, assembly included.
 
     python benchmarks/bench_linsolve.py
 
@@ -11,7 +11,8 @@ import time
 
 import numpy as np
 
-from isaac_runtime.linsolve import SparsePattern, TreeSolver, assemble_dense, solve_dense, solve_sparse
+from benchmarks.linsolve_tree import TreeSolver
+from benchmarks.linsolve import SparsePattern, assemble_dense, solve_dense, solve_sparse
 
 DENSE_MAX = 3000  # rows; beyond this dense assembly + Cholesky is not sane to time
 

@@ -30,8 +30,8 @@ from scipy.special import ellipk
 
 from isaac_lang.load import load_scene
 from isaac_runtime.plan import PlanOptions, compile_plan
-from isaac_runtime.rotation import quat_rotate
-from isaac_runtime.plan import energy_scale
+from isaac_runtime.core.rotation import quat_rotate
+from isaac_runtime.core.build import energy_scale
 from isaac_runtime.simulation import NumericalError, Simulation
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from isaac_lang.load import load_scene, load_text
 from isaac_runtime.plan import PlanOptions, compile_plan
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 WARMUP_STEPS = 5

@@ -62,7 +62,7 @@ class Case:
 
 @functools.lru_cache(maxsize=None)
 def physics(case: Case) -> Physics:
-    from isaac_runtime.plan import energy_scale
+    from isaac_runtime.core.build import energy_scale
 
     from .common import plan_for
 
@@ -107,7 +107,7 @@ BY_NAME = {c.name: c for c in CASES}
 
 def body_points(traj: dict, body: int, point) -> np.ndarray:
     """World trajectory (T,3) of a body-frame point."""
-    from isaac_runtime.rotation import quat_rotate
+    from isaac_runtime.core.rotation import quat_rotate
 
     q = traj["orientation"][:, body]
     return traj["position"][:, body] + quat_rotate(q, np.broadcast_to(np.asarray(point, float), (len(q), 3)))
@@ -143,7 +143,7 @@ def period_error(traj: dict, body: int, exact: float) -> float:
 
 def energy(traj: dict, ph: Physics) -> np.ndarray:
     """(T,) kinetic + gravitational potential energy of the dynamic bodies (as Simulation.energy)."""
-    from isaac_runtime.rotation import quat_to_matrix
+    from isaac_runtime.core.rotation import quat_to_matrix
 
     d = ph.dynamic
     v, w = traj["linear_velocity"][:, d], traj["angular_velocity"][:, d]

@@ -108,7 +108,7 @@ def heap_mjcf(count: int, kind: str, integrator: str) -> str:
 
 def warm_up(kinds, plans) -> None:
     """Load numba's cached code (the first run ever compiles, ~100 s) on a tiny heap of each kind and plan."""
-    from isaac_runtime.simulation import Simulation
+    from isaac.api import Simulation
 
     for kind in kinds:
         for plan in plans:
@@ -120,7 +120,7 @@ def warm_up(kinds, plans) -> None:
 
 
 def run_ours(count: int, kind: str, plan: str, limit: float) -> dict:
-    from isaac_runtime.simulation import Simulation
+    from isaac.api import Simulation
 
     row = {"scene": f"heap-{kind}-{count}", "kind": kind, "count": count, "engine": "isaac",
            "plan/integrator": "dynamics rk4" if plan == "dynamics" else "procedural xpbd",

@@ -15,7 +15,7 @@ TOP = 12
 
 
 def profile_scene(name: str, overrides: dict, steps: int) -> list:
-    from isaac_runtime.simulation import Simulation
+    from isaac.api import Simulation
 
     sim = Simulation(common.plan_for(common.configured(common.load(name, overrides), integrator="rk4"),
                                      "dynamics", 1e-3))

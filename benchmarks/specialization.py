@@ -66,10 +66,10 @@ PROBE = r"""
 import json, sys, time
 t0 = time.perf_counter()
 from isaac_lang.syntax import parse_text
-from isaac_lang.diagnostics import Reporter
+from isaac_ir.diagnostics import Reporter
 from isaac_lang.load import load_text
 from isaac_runtime.plan import compile_plan, PlanOptions
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 t_import = time.perf_counter() - t0
 text = sys.stdin.read()
 best = lambda f: min((lambda s: (f(), time.perf_counter() - s)[1])(time.perf_counter()) for _ in range(3))
@@ -113,7 +113,7 @@ def side_by_side(texts: list, window: float, run_until: float) -> list:
     the bare step loop (Simulation.step), and the whole in-process `isaac run` (simulate: plan, the audio stage
     when there is one, recording every frame) for `run_until` simulated seconds."""
     from isaac_runtime.run import RunOptions, simulate
-    from isaac_runtime.simulation import Simulation
+    from isaac.api import Simulation
 
     scenes = [common.load_source(t, "p.isaac") for _, t in texts]
     sims = [Simulation(common.plan_for(scene, "dynamics")) for scene in scenes]
@@ -137,7 +137,7 @@ LIVE_UNTIL = 4.0  # s of `isaac live scenes/mobile.isaac --mic scenes/assets/bre
 
 def command_imports(out_dir: Path) -> tuple:
     """(summary row, top imports) of `isaac run scenes/pendulum.isaac` under -X importtime."""
-    args = ["-m", "isaac_lang.cli", "run", str(common.SCENES / "pendulum.isaac"), "--until", "0.01", "--quiet",
+    args = ["-m", "isaac.cli", "run", str(common.SCENES / "pendulum.isaac"), "--until", "0.01", "--quiet",
             "--no-viewer", "--out", str(out_dir)]
     begin = time.perf_counter()
     done = subprocess.run([sys.executable, "-X", "importtime", *args], capture_output=True, text=True, env=_env(),
@@ -147,9 +147,9 @@ def command_imports(out_dir: Path) -> tuple:
     wall = min(_wall([sys.executable, *args]) for _ in range(3))
     bare = min(_wall([sys.executable, "-c", "pass"]) for _ in range(3))
     # issue 13's and issue 16's checks, whole processes: the shipped pendulum's run, and 4 s of the mobile live
-    pendulum = min(_wall([sys.executable, "-m", "isaac_lang.cli", "run", str(common.SCENES / "pendulum.isaac"),
+    pendulum = min(_wall([sys.executable, "-m", "isaac.cli", "run", str(common.SCENES / "pendulum.isaac"),
                           "--quiet", "--out", str(out_dir / "pendulum")]) for _ in range(3))
-    live = min(_wall([sys.executable, "-m", "isaac_lang.cli", "live", str(common.SCENES / "mobile.isaac"), "--mic",
+    live = min(_wall([sys.executable, "-m", "isaac.cli", "live", str(common.SCENES / "mobile.isaac"), "--mic",
                       str(common.SCENES / "assets" / "breath.wav"), "--until", str(LIVE_UNTIL), "--port", "0",
                       "--no-browser", "--no-viewer", "--quiet", "--out", str(out_dir / "live")]) for _ in range(2))
     names = {i["module"] for i in imports}

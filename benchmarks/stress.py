@@ -194,7 +194,7 @@ class Watch:
     """Observer: every `every` steps the constraint error, energy and finiteness of the whole state."""
 
     def __init__(self, sim, case: Stress, every: int):
-        from isaac_runtime.plan import energy_scale
+        from isaac_runtime.core.build import energy_scale
 
         self.case, self.every, self.calls = case, every, 0
         self.e0, self.scale = sim.energy(), energy_scale(sim.plan)

@@ -68,7 +68,7 @@ def measured_period(trajectory: Path) -> float:
 
 def period_sweep(scheduler=None) -> list:
     """[(theta0 in degrees, measured period, exact period)] from one sweep of AMPLITUDES."""
-    from isaac_runtime.sweep import sweep
+    from isaac.sweep import sweep
 
     with tempfile.TemporaryDirectory(prefix="isaac-sweep-period-") as out:
         table = sweep(ROOT / "scenes" / "pendulum.isaac", {"theta0": AMPLITUDES}, out=out, scheduler=scheduler,
@@ -117,7 +117,7 @@ def speedup(worker_counts=(1, 2), repeats: int = 2) -> list:
 def _in_process(scene: Path, first_only: bool = False) -> float:
     from isaac_lang.load import load_scene
     from isaac_runtime.run import RunOptions, simulate
-    from isaac_runtime.sweep.grid import variants_of
+    from isaac.sweep.grid import variants_of
 
     started = time.perf_counter()
     for values in variants_of(SPEEDUP_GRID)[:1 if first_only else None]:
@@ -126,7 +126,7 @@ def _in_process(scene: Path, first_only: bool = False) -> float:
 
 
 def _on_cluster(scene: Path, workers: int) -> float:
-    from isaac_runtime.sweep import sweep
+    from isaac.sweep import sweep
 
     with tempfile.TemporaryDirectory(prefix="isaac-sweep-speed-") as out:
         started = time.perf_counter()

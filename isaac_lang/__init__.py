@@ -1,6 +1,6 @@
-"""isaac_lang: the front end. Scene text -> parse tree -> IR; diagnostics; the command line."""
+"""isaac_lang: the front end. Scene text -> parse tree -> expanded declarations -> IR (isaac_ir) -> checked IR."""
 
-from .imports import without as _without
+from isaac_ir.imports import without as _without
 
 # lark imports interegular, when it is installed, only to warn about colliding terminals while it builds a lexer:
 # 40 ms of every command's start, for a check that belongs to writing a grammar, not to reading scenes; and regex,

@@ -11,8 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import expr as E
-from .diagnostics import Reporter, SourceCache, SourcePos
+from isaac_ir import expr as E
+from isaac_ir.diagnostics import Reporter, SourceCache, SourcePos
+from isaac_ir.files import MAX_ASSET_BYTES, Confinement
 
 # files read as sound (their header, by soundfile): recordings
 SOUND_SUFFIXES = (".wav", ".flac", ".ogg", ".aiff", ".aif", ".mp3")
@@ -126,3 +127,17 @@ def _position(asset: Asset, sources: SourceCache) -> SourcePos | None:
             if col >= 0:
                 return SourcePos(decl.file, number, col + 1, len(quoted))
     return decl
+
+
+def refused_assets(scene, folder, confinement: Confinement | None) -> list:
+    """[(asset, FileRefused)] of the textures and recordings a scene names that it may not
+    read: one outside the scene's folders, a device, a FIFO, a file too large, one under /proc, /sys or /dev
+    (meshes are confined where they are named: isaac_ir/meshfile.py)."""
+    if confinement is None:
+        return []
+    found = []
+    for asset in named_assets(scene):
+        if asset.kind != "mesh":
+            refused = confinement.refusal(resolve(asset.name, folder or "."), MAX_ASSET_BYTES[asset.kind])
+            found += [(asset, refused)] if refused is not None else []
+    return found

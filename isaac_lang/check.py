@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import math
 
-from . import ir
-from .diagnostics import Reporter, SourcePos
+from isaac_ir import ir
+from isaac_ir.diagnostics import Reporter, SourcePos
 
 
 def check(scene: ir.Scene, reporter: Reporter) -> list[str]:
@@ -104,7 +104,7 @@ def never_fires(scene: ir.Scene, sound: ir.Sound) -> str | None:
 def unused_properties(scene: ir.Scene) -> list[str]:
     """Warnings for what a scene sets that nothing uses (never silence): the air's drag on a body that does not
     move by forces, a drag or an area with `wind off`, an `air` density no body feels."""
-    from .lower import AIR_DENSITY, DEFAULT_DRAG
+    from isaac_lang.lower import AIR_DENSITY, DEFAULT_DRAG
 
     warnings = []
     for body in scene.bodies:

@@ -5,19 +5,17 @@ can resolve names once every body, material and wind is known, whatever the orde
 """
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lark import Token, Tree
-from lark.exceptions import UnexpectedInput
+from lark import Tree
 
-from . import expr as E
-from . import units as U
-from .diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean, display_path
-from .files import BadEncoding, Confinement, FileRefused
-from .lower_expr import CONTEXTS, FIXED, BodyRef, ExprContext, ExprLowerer, Scope, Typed, ref_name
-from .syntax import parse_expression, parse_text
+from isaac_ir import expr as E
+from isaac_ir import units as U
+from isaac_ir.diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean, display_path
+from isaac_ir.files import BadEncoding, Confinement, FileRefused
+from isaac_lang.lower_expr import CONTEXTS, FIXED, BodyRef, ExprContext, ExprLowerer, Scope, Typed, ref_name, interpolate_name
+from isaac_lang.syntax import parse_text
 
 DECLARATIONS = ("material", "body", "constraint", "force", "wind", "sound", "camera", "light", "exclude",
                 "collide")
@@ -54,7 +52,7 @@ class Expansion:
     # the scene's folder: the files it names are relative to it (lowering reads the meshes it validates and
     # integrates from there)
     folder: Path | None = None
-    confinement: Confinement | None = None  # where those files may be read from (isaac_lang/files.py)
+    confinement: Confinement | None = None  # where those files may be read from (isaac_ir/files.py)
 
 
 class Expander:
@@ -95,7 +93,7 @@ class Expander:
 
     def _read_and_parse(self, path: Path, name: str, at: SourcePos | None):
         """The parse tree of a scene file, or None with the reason reported (at the include that names it, or at
-        the bad byte of a file that is not UTF-8). A refused file is never opened (isaac_lang/files.py)."""
+        the bad byte of a file that is not UTF-8). A refused file is never opened (isaac_ir/files.py)."""
         try:
             text = self.confinement.read_text(path)
         except BadEncoding as error:
@@ -281,34 +279,3 @@ class Expander:
         return interpolate_name(text, token, scope, lowerer)
 
 
-def interpolate_name(text: str, token, scope: Scope, lowerer: ExprLowerer) -> str:
-    """link{i+1} -> link3 with i = 2: each {expr} must be a whole number."""
-    out, rest = [], text
-    while "{" in rest:
-        head, _, tail = rest.partition("{")
-        inner, _, rest = tail.partition("}")
-        out.append(head + str(_name_piece(inner, token, scope, lowerer)))
-    out.append(rest)
-    return "".join(out)
-
-
-def _name_piece(inner: str, token, scope: Scope, lowerer: ExprLowerer) -> int:
-    """The whole number `{inner}` stands for; a problem inside the braces is reported at the name."""
-    scratch = ExprLowerer(lowerer.file, Reporter())  # positions inside `inner` are not the file's
-    try:
-        value = scratch.lower(_piece_tree(inner), scope, FIXED)
-    except UnexpectedInput:
-        raise lowerer.fail(f"cannot read `{{{inner}}}` in a name", token, "write e.g. `link{i+1}`") from None
-    except SceneError as error:
-        first = error.diagnostics[0]
-        raise lowerer.fail(f"in `{{{inner}}}`: {first.message}", token, first.hint) from None
-    number = value.node.value if isinstance(value.node, E.Const) else None
-    if not isinstance(number, float) or number != int(number):
-        raise lowerer.fail(f"`{{{inner}}}` in a name must be a whole number", token)
-    return int(number)
-
-
-@functools.lru_cache(maxsize=4096)
-def _piece_tree(inner: str) -> Tree:
-    """Parse trees of the `{...}` pieces of names, parsed once each (a loop repeats the same few)."""
-    return parse_expression(inner)

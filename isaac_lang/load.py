@@ -13,15 +13,15 @@ from pathlib import Path
 
 from lark.exceptions import UnexpectedInput
 
-from . import ir
-from .assets import check_assets
-from .check import check
-from .diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean
-from .expand import Expander, Limits
-from .lower import SceneLowerer
-from .lower_expr import ExprContext, ExprLowerer, Scope
-from .syntax import describe_syntax_error, parse_expression
-from .typos import explain_unit_typos
+from isaac_ir import ir
+from isaac_lang.assets import check_assets
+from isaac_lang.check import check
+from isaac_ir.diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean
+from isaac_lang.expand import Expander, Limits
+from isaac_lang.lower import SceneLowerer
+from isaac_lang.lower_expr import ExprContext, ExprLowerer, Scope
+from isaac_lang.syntax import describe_syntax_error, parse_expression
+from isaac_lang.typos import explain_unit_typos
 
 
 @dataclass
@@ -101,7 +101,7 @@ def _load_stages(path: Path, root: Path, overrides: dict, limits: Limits, source
 
 
 def _expand_text(expander: Expander, path: Path, text: str, scope: Scope) -> None:
-    from .syntax import parse_text
+    from isaac_lang.syntax import parse_text
 
     name = path.name
     expander.sources.add(name, text)

@@ -7,55 +7,24 @@ import weakref
 
 import numpy as np
 
-from . import expr as E
-from . import ir
-from . import lower_compound as C
-from . import mass as M
-from . import units as U
-from .diagnostics import Reporter, SceneError, SourcePos, did_you_mean
-from .expand import Decl, Expansion
-from .files import refused_assets
-from .meshfile import mesh_problem
-from .lower_constraints import ConstraintLowerer, lengths_over_first_minute
-from .origins import setting_origins
-from .lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, is_table, ref_name, written_with
-from .props import Props
-from .syntax import KEYWORDS
+from isaac_ir import expr as E
+from isaac_ir import ir
+from isaac_lang import lower_compound as C
+from isaac_ir import mass as M
+from isaac_ir import units as U
+from isaac_ir.diagnostics import Reporter, SceneError, SourcePos, did_you_mean
+from isaac_lang.expand import Decl, Expansion
+from isaac_lang.assets import refused_assets
+from isaac_ir.meshfile import mesh_problem
+from isaac_lang.lower_constraints import ConstraintLowerer, lengths_over_first_minute
+from isaac_lang.origins import setting_origins
+from isaac_lang.lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, is_table, ref_name, written_with
+from isaac_lang.props import Props
+from isaac_lang.syntax import KEYWORDS
+from isaac_lang.vocabulary import (AUDIO_PROPS, BODY_PROPS, CAMERA_PROPS, LIGHT_PROPS, LISTENER_PROPS,  # noqa: F401
+                                   MATERIAL_PROPS, MOTIONS, SETTINGS, SHAPES, SOLVER_PROPS, SOUND_PROPS, WIND_PROPS)
 
 AIR_DENSITY = 1.2  # kg/m3, air at sea level and 20 C
-SHAPES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh", "compound")
-MOTIONS = ("dynamic", "static", "kinematic")
-
-SETTINGS = {"time": "start .. end", "gravity": "acceleration vector", "frames": "output frame rate",
-            "air": "air density (drag of bodies in still air and in the winds)",
-            "seed": "seed of random things", "listener": "{ at, gain, delay }", "audio": "{ rate, channels }"}
-SOLVER_PROPS = {"integrator": "rk4 | euler | midpoint", "step": "time step", "stabilize": "frequency",
-                "damping": "damping ratio", "linear": "auto | dense | sparse | tree", "substeps": "procedural",
-                "iterations": "procedural", "compliance": "procedural softness, m/N",
-                "projection": "procedural: auto | direct | gauss_seidel",
-                "stabilization": "dynamics: projection | baumgarte",
-                "tolerance": "dynamics, rk4: local error of a step before it is taken again in substeps (0: off)"}
-CAMERA_PROPS = {"at": "position", "look": "point looked at", "up": "up direction", "fov": "vertical field of view"}
-LIGHT_PROPS = {"from": "where a distant light comes from", "at": "position", "to": "where it points",
-               "intensity": "brightness", "color": "(r, g, b)"}
-MATERIAL_PROPS = {"density": "kg/m3", "friction": "Coulomb coefficient", "restitution": "0..1",
-                  "young": "Young's modulus", "poisson": "Poisson's ratio", "loss": "internal friction tan(phi)",
-                  "rayleigh": "(alpha, beta)", "roughness": "surface height scale", "texture": "height profile file"}
-BODY_PROPS = {"radius": "length", "length": "length along z", "size": "box edges", "normal": "plane normal",
-              "file": "mesh file", "scale": "mesh scale", "mass": "kg", "density": "kg/m3",
-              "inertia": "principal moments", "at": "its origin (a primitive's centre)", "orient": "orientation",
-              "velocity": "initial velocity", "spin": "initial angular velocity", "material": "material name",
-              "collide": "on | off", "wind": "on | off", "drag": "drag coefficient", "area": "area facing the wind",
-              "modes": "((f, decay, gain), ...)",
-              "kinematic": "START .. END: on its path then, dynamic before and after"}
-WIND_PROPS = {"direction": "where the air goes", "from": "source point", "toward": "direction from the source",
-              "speed": "m/s, may follow t or a breath", "falloff": "none | inverse | inverse_square",
-              "distance": "reference distance of the falloff", "spread": "cone half-angle",
-              "turbulence": "gust amplitude (relative)", "gust": "gust time scale", "air": "air density"}
-SOUND_PROPS = {"play": "audio-graph expression", "gain": "linear gain or dB"}
-LISTENER_PROPS = {"at": "position", "gain": "gain", "delay": "on | off"}
-AUDIO_PROPS = {"rate": "sample rate", "channels": "1 or 2"}
-
 # the words that open a constraint's time window: a misspelled one after a constraint reads as a setting
 WINDOW_WORDS = ("during", "from", "until")
 

@@ -16,8 +16,9 @@ import math
 
 from lark import Tree
 
-from . import expr as E
-from . import units as U
+from isaac_ir import expr as E
+from isaac_ir import units as U
+from isaac_lang.typed import Typed
 
 # terms left in a chain from which its expression is built balanced rather than leaning left
 BALANCED_FROM = 32
@@ -163,6 +164,4 @@ def _left_spine(tree, kinds) -> list:
 
 
 def _typed(lowerer, node, dim):
-    from .lower_expr import Typed  # (lower_expr imports this module)
-
     return Typed(node, dim)

@@ -25,13 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
-from . import expr as E
-from . import ir
-from . import mass as M
-from . import units as U
-from .diagnostics import SceneError, did_you_mean
-from .lower_expr import CONTEXTS, FIXED, Typed
-from .props import Props
+from isaac_ir import expr as E
+from isaac_ir import ir
+from isaac_ir import mass as M
+from isaac_ir import units as U
+from isaac_ir.diagnostics import SceneError, did_you_mean
+from isaac_lang.lower_expr import CONTEXTS, FIXED, Typed, interpolate_name
+from isaac_lang.props import Props
+from isaac_lang.vocabulary import MOTIONS
 
 PART_SHAPES = ("sphere", "box", "cylinder", "capsule", "mesh")
 NEEDS = {"sphere": ("radius",), "box": ("size",), "cylinder": ("radius", "length"), "capsule": ("radius", "length"),
@@ -173,7 +174,6 @@ class CompoundLowerer:
         return int(number)
 
     def _part(self, tree, scope, body_material) -> _Part:
-        from .expand import interpolate_name
 
         name_tree, *words, block = tree.children
         token = name_tree.children[0]
@@ -205,8 +205,6 @@ class CompoundLowerer:
                      self.scene._modes(props), volume, mesh, str(self.lowerer.pos(tree)))
 
     def _part_shape(self, name: str, token, words) -> str:
-        from .lower import MOTIONS
-
         kinds = [str(w) for w in words]
         for word, text in zip(words, kinds):
             if text in MOTIONS:
@@ -319,7 +317,7 @@ def mesh_body(scene, shape: ir.Shape, motion: str, props: Props, mass, density, 
 
 def read_solid(scene, shape: ir.Shape, props: Props, hint: str) -> tuple:
     """mass.mesh_integrals of a mesh shape's file (scaled), with a positioned error when it cannot be had."""
-    from .meshfile import MeshFileError
+    from isaac_ir.meshfile import MeshFileError
 
     folder = getattr(scene.x, "folder", None)
     path = Path(shape.file) if Path(shape.file).is_absolute() or folder is None else Path(folder) / shape.file
@@ -344,7 +342,7 @@ def _stamp(path: Path) -> tuple:
 @functools.lru_cache(maxsize=64)
 def _solid_of(path: str, stamp: tuple, scale: float) -> tuple:
     """The volume integrals of a mesh file, read once per version of the file (a loop of 30 teeth reads one)."""
-    from .meshfile import read_mesh
+    from isaac_ir.meshfile import read_mesh
 
     vertices, faces = read_mesh(path)
     volume, centre, unit = M.mesh_integrals(vertices * scale, faces)

@@ -1,29 +1,29 @@
 """Lowering of constraints (the library, `+` and `-` combination, named kinds), forces and sound triggers.
 
-A constraint expression is an algebra over rows (PHYSICS.md section 3): `a + b` is the union of the rows of
+A constraint expression is an algebra over rows (docs/design/physics.md section 3): `a + b` is the union of the rows of
 a and b; `a - tz` removes the element row `tz` from a. A named kind (`kind windmill(a, b) = ...`) is expanded
 at each use with its parameters bound.
 """
 from __future__ import annotations
+
+import dataclasses
 
 import math
 
 import numpy as np
 from lark import Token, Tree
 
-from . import expr as E
-from . import ir
-from . import units as U
-from .diagnostics import did_you_mean
-from .lower_expr import AXES, CONTEXTS, FIXED, BodyRef, ExprContext, Scope, Typed, ref_name, ref_text
-from .props import Props
+from isaac_ir import expr as E
+from isaac_ir import ir
+from isaac_ir import units as U
+from isaac_ir.diagnostics import did_you_mean
+from isaac_lang.lower_expr import AXES, CONTEXTS, FIXED, BodyRef, ExprContext, Scope, Typed, ref_name, ref_text
+from isaac_lang.props import Props
+from isaac_lang.vocabulary import CONSTRAINT_PROPS, FORCE_PROPS
 
 ELEMENTS = {"tx": ("x", False), "ty": ("y", False), "tz": ("z", False),
             "rx": ("x", True), "ry": ("y", True), "rz": ("z", True)}
 POINT_ROWS = ("tx", "ty", "tz")
-CONSTRAINT_PROPS = {"stabilize": "frequency", "damping": "damping ratio", "compliance": "procedural softness"}
-FORCE_PROPS = {"stiffness": "N/m", "rest": "rest length", "damping": "N*s/m", "force": "N (may follow t)",
-               "torque": "N*m (may follow t)"}
 LIBRARY = ("nail", "point", "orient", "plane", "gear", "rope", "weld") + tuple(ELEMENTS)
 
 
@@ -138,9 +138,8 @@ class ConstraintLowerer:
         inner = Scope(parent=kind_scope, prefix=(scope or decl.scope).prefix)
         for name, arg in zip(params, args):
             inner.values[name] = self._kind_argument(arg, scope or decl.scope, decl)
-        from .expand import Decl
 
-        return self.terms(body, inner, Decl(decl.kind, decl.name, decl.tree, inner, kind_lowerer))
+        return self.terms(body, inner, dataclasses.replace(decl, scope=inner, lowerer=kind_lowerer))
 
     def _kind_argument(self, arg, scope, decl):
         if isinstance(arg, Tree) and arg.data == "name_ref":
@@ -228,7 +227,7 @@ class ConstraintLowerer:
 
     def pose(self, body: str):
         """Position and rotation matrix of a body at the start (for `@ world` points and default targets)."""
-        from . import expr as X
+        from isaac_ir import expr as X
 
         spec = self.scene.bodies[body]
         x0 = np.asarray(X.evaluate(spec.position, {"t": 0.0}), dtype=float)
@@ -243,7 +242,7 @@ class ConstraintLowerer:
         if len(args) not in counts:
             raise decl.lowerer.fail(f"`{tree.children[0]}` takes {usage}", tree)
 
-    # -- the library (PHYSICS.md section 3) ---------------------------------------------------------------
+    # -- the library (docs/design/physics.md section 3) ---------------------------------------------------------------
 
     def _lib_nail(self, args, tree, scope, decl):
         self._arity(args, (1, 2), tree, decl, "(body @ point) or (body @ point, world point)")

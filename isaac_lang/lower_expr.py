@@ -11,11 +11,14 @@ import math
 from dataclasses import dataclass, field
 
 from lark import Token, Tree
+from lark.exceptions import UnexpectedInput
 
-from . import expr as E
-from . import lower_chains as chains
-from . import units as U
-from .diagnostics import Reporter, SourcePos, SceneError, did_you_mean
+from isaac_ir import expr as E
+from isaac_lang import lower_chains as chains
+from isaac_lang.typed import Typed
+from isaac_ir import units as U
+from isaac_ir.diagnostics import Reporter, SourcePos, SceneError, did_you_mean
+from isaac_lang.syntax import parse_expression
 
 AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 # the deepest nesting of brackets, calls and vectors lowered (each level a few Python frames; chains of one
@@ -36,23 +39,8 @@ AUDIO_FUNCTIONS = {
     "modal", "noise", "sine", "pulse", "bandpass", "lowpass", "highpass", "decay", "adsr", "delay", "pan",
     "scrape", "roll", "wind_noise", "whistle", "impact", "mix", "gain", "envelope",
 }
-# motion signals a sound's graph may read (SOUND.md: leaves mapped from the motion)
+# motion signals a sound's graph may read (docs/design/sound.md#section-1: leaves mapped from the motion)
 AUDIO_SIGNALS = {"impulse", "speed", "normal_force", "wind_speed", "distance", "t"}
-
-
-@dataclass(frozen=True)
-class Typed:
-    """An expression with its dimension (a diagnostic about it points at the parse tree it came from)."""
-
-    node: E.Expr
-    dim: tuple | None
-
-    @property
-    def size(self) -> int:
-        node = self.node
-        if type(node) is E.Const:  # most values: answered without hashing the node for size_of's cache
-            return len(node.value) if type(node.value) is tuple else 0
-        return E.size_of(node)
 
 
 @dataclass(frozen=True)
@@ -322,7 +310,7 @@ class ExprLowerer:
             raise self.fail(f"`{fn}`: the vector arguments differ in size", tree)
 
     def _angle_arg(self, fn: str, index: int, arg: Typed) -> E.Expr:
-        # euler(...) and axis_angle(axis, angle) take degrees when no unit is written (LANGUAGE.md)
+        # euler(...) and axis_angle(axis, angle) take degrees when no unit is written (docs/language.md)
         if (fn == "euler" or (fn == "axis_angle" and index == 1)) and arg.dim is None:
             return E.mul(arg.node, E.Const(math.pi / 180.0))
         return arg.node
@@ -520,7 +508,6 @@ CONSTRAINT_CALLS = {"nail", "point", "orient", "plane", "gear", "rope", "weld",
 def ref_text(token, scope: Scope, lowerer: ExprLowerer) -> str:
     """The name a reference token stands for: `link{i+1}` is interpolated in the current scope."""
     if getattr(token, "type", None) == "TNAME":
-        from .expand import interpolate_name
 
         return interpolate_name(str(token), token, scope, lowerer)
     return str(token)
@@ -529,3 +516,38 @@ def ref_text(token, scope: Scope, lowerer: ExprLowerer) -> str:
 def ref_name(tree: Tree, scope: Scope, lowerer: ExprLowerer) -> str:
     """The full name a `name_ref` stands for: `bob`, `link{i}` interpolated, or a part instance's `left.bob`."""
     return ".".join([ref_text(tree.children[0], scope, lowerer)] + [str(t) for t in tree.children[1:]])
+
+
+# ---- names with {expr} pieces -------------------------------------------------------------------------------
+
+def interpolate_name(text: str, token, scope: Scope, lowerer: ExprLowerer) -> str:
+    """link{i+1} -> link3 with i = 2: each {expr} must be a whole number."""
+    out, rest = [], text
+    while "{" in rest:
+        head, _, tail = rest.partition("{")
+        inner, _, rest = tail.partition("}")
+        out.append(head + str(_name_piece(inner, token, scope, lowerer)))
+    out.append(rest)
+    return "".join(out)
+
+
+def _name_piece(inner: str, token, scope: Scope, lowerer: ExprLowerer) -> int:
+    """The whole number `{inner}` stands for; a problem inside the braces is reported at the name."""
+    scratch = ExprLowerer(lowerer.file, Reporter())  # positions inside `inner` are not the file's
+    try:
+        value = scratch.lower(_piece_tree(inner), scope, FIXED)
+    except UnexpectedInput:
+        raise lowerer.fail(f"cannot read `{{{inner}}}` in a name", token, "write e.g. `link{i+1}`") from None
+    except SceneError as error:
+        first = error.diagnostics[0]
+        raise lowerer.fail(f"in `{{{inner}}}`: {first.message}", token, first.hint) from None
+    number = value.node.value if isinstance(value.node, E.Const) else None
+    if not isinstance(number, float) or number != int(number):
+        raise lowerer.fail(f"`{{{inner}}}` in a name must be a whole number", token)
+    return int(number)
+
+
+@functools.lru_cache(maxsize=4096)
+def _piece_tree(inner: str) -> Tree:
+    """Parse trees of the `{...}` pieces of names, parsed once each (a loop repeats the same few)."""
+    return parse_expression(inner)

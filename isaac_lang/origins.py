@@ -1,6 +1,6 @@
 """Where the scene-wide settings were written (`time`, `frames`, `audio { rate }`, `solver ... { step }`), kept
 beside the IR (ir.Scene.origins) so that a later stage can point at the setting it has a problem with: the
-plan's budgets (runtime/budgets.py) say "this `frames 1e9 Hz` asks for 1e10 frames" at the `1e9 Hz`."""
+plan's budgets (runtime/plan/budgets.py) say "this `frames 1e9 Hz` asks for 1e10 frames" at the `1e9 Hz`."""
 from __future__ import annotations
 
 from lark import Tree

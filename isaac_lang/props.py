@@ -5,10 +5,10 @@ import math
 
 from lark import Token, Tree
 
-from . import expr as E
-from . import units as U
-from .diagnostics import did_you_mean
-from .lower_expr import CONTEXTS, ExprContext, ExprLowerer, Scope, Typed
+from isaac_ir import expr as E
+from isaac_ir import units as U
+from isaac_ir.diagnostics import did_you_mean
+from isaac_lang.lower_expr import CONTEXTS, ExprContext, ExprLowerer, Scope, Typed
 
 TRUE_WORDS = {"on", "true", "yes"}
 FALSE_WORDS = {"off", "false", "no"}

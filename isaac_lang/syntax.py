@@ -13,8 +13,9 @@ from importlib import resources
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
-from .diagnostics import Reporter, SourcePos, did_you_mean, source_lines
-from .parse_loop import ParseLoop, Rejected
+from isaac_ir.diagnostics import Reporter, SourcePos, did_you_mean, source_lines
+from isaac_lang.parse_loop import ParseLoop, Rejected
+from isaac_lang.vocabulary import property_names
 
 KEYWORDS = ("scene", "let", "include", "material", "body", "constraint", "kind", "force", "wind", "sound",
             "camera", "light", "solver", "exclude", "collide", "part", "use",
@@ -110,21 +111,10 @@ def _misspelled_keyword(token: Token, text: str):
     if not token.line or token.line > len(lines):
         return None
     match = re.match(r"\s*([A-Za-z_][A-Za-z0-9_]*)", lines[token.line - 1])
-    if not match or match.group(1) in KEYWORDS or match.group(1) in _property_names():
+    if not match or match.group(1) in KEYWORDS or match.group(1) in property_names():
         return None
     guess = did_you_mean(match.group(1), KEYWORDS)
     return (match.group(1), match.start(1) + 1, guess) if guess else None
-
-
-@functools.lru_cache(maxsize=1)
-def _property_names() -> frozenset:
-    """Every name a block or a scene setting knows (a line may open with one of them legitimately)."""
-    from . import lower, lower_constraints
-
-    tables = (lower.SETTINGS, lower.SOLVER_PROPS, lower.CAMERA_PROPS, lower.LIGHT_PROPS, lower.MATERIAL_PROPS,
-              lower.BODY_PROPS, lower.WIND_PROPS, lower.SOUND_PROPS, lower.LISTENER_PROPS, lower.AUDIO_PROPS,
-              lower_constraints.CONSTRAINT_PROPS, lower_constraints.FORCE_PROPS)
-    return frozenset(name for table in tables for name in table)
 
 
 def _expected(error) -> str:

@@ -13,8 +13,8 @@ import functools
 import re
 from dataclasses import dataclass
 
-from . import units as U
-from .diagnostics import Diagnostic, SceneError, SourceCache, SourcePos
+from isaac_ir import units as U
+from isaac_ir.diagnostics import Diagnostic, SceneError, SourceCache, SourcePos
 
 # a syntax error up to this many lines after a misspelled unit is taken for its echo
 ECHO_LINES = 3
@@ -142,6 +142,7 @@ def _ratio(a: str, b: str) -> float:
 @functools.lru_cache(maxsize=1)
 def _language_words() -> frozenset:
     """Words that may follow a value: keywords, properties, settings, and the grammar's other words."""
-    from .syntax import KEYWORDS, _property_names
+    from isaac_lang.syntax import KEYWORDS
+    from isaac_lang.vocabulary import property_names
 
-    return frozenset(KEYWORDS) | _property_names() | {"in", "during", "from", "until", "on", "world", "keys"}
+    return frozenset(KEYWORDS) | property_names() | {"in", "during", "from", "until", "on", "world", "keys"}

@@ -390,7 +390,7 @@ def unsatisfiable_warning(scene, found: dict) -> str:
 def unsatisfiable_error(scene, found: dict):
     """The SceneError (exit 2) of constraints no pose satisfies: at the first declared, naming them all and where
     the others are declared."""
-    from isaac_lang.diagnostics import Diagnostic, SceneError, SourcePos
+    from isaac_ir.diagnostics import Diagnostic, SceneError, SourcePos
 
     sources = {c.name: c.source for c in scene.constraints}
     names, errors = found["constraints"], found["errors"]
@@ -416,7 +416,7 @@ def unsatisfiable_error(scene, found: dict):
 
 
 def _stuck_diagnostic(names: list, errors: dict, listed: str, others: str, limit: float, first):
-    from isaac_lang.diagnostics import Diagnostic
+    from isaac_ir.diagnostics import Diagnostic
 
     many = len(names) > 1
     said = ("their errors are " + ", ".join(f"`{n}` {errors[n]:.3g}" for n in names) if many

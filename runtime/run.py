@@ -1,8 +1,8 @@
 """`isaac run`: plan, simulate frame by frame, write the outputs, hold the run to its tolerances.
 
 The driver (`run_scene`) reads as the list of stages: check the output folder is isaac's, simulate (plan, extras,
-step loop, report), write the files of ARCHITECTURE.md's contract (and the viewer, the plots) as one set that
-replaces the previous run's whole (runtime/outputset.py), say what happened (warnings, errors, the summary) and
+step loop, report), write the files of docs/outputs.md's contract (and the viewer, the plots) as one set that
+replaces the previous run's whole (runtime/outputs/outputset.py), say what happened (warnings, errors, the summary) and
 return the exit code: 0, 2 for a blow-up (or a warning under --strict), 3 for a finished run that broke a
 tolerance (--max-constraint-error).
 """
@@ -18,14 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
-from isaac_lang import ir
-from isaac_lang.diagnostics import warning_diagnostic
+from isaac_ir import ir
+from isaac_ir.diagnostics import warning_diagnostic
 
 from . import checks
-from .extras import check_extras
+from .plan.extras import check_extras
 from .outputs import Recorder, write_json, write_npz
-from .outputset import OutputSet
-from .plan import PlanOptions, compile_plan, energy_scale
+from .outputs.outputset import OutputSet
+from .core.build import energy_scale
+from .plan import PlanOptions, compile_plan
 from .simulation import NumericalError, Simulation
 
 EXIT_OK, EXIT_SCENE, EXIT_TOLERANCE = 0, 2, 3
@@ -100,7 +101,7 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     energy0 = float(recorder.energy[0]) if recorder.count else sim.energy()  # the first frame's: the start
     with np.errstate(all="ignore"), warnings.catch_warnings():  # a blown-up run's figures are NaN: null in JSON
         warnings.simplefilter("ignore", RuntimeWarning)
-        report = _report(sim, recorder, energy0, time.perf_counter() - started, error)
+        report = run_report(sim, recorder, energy0, time.perf_counter() - started, error)
     report["warnings"] = list(options.scene_warnings) + plan_warnings + report["warnings"]
     conflict = _conflicts(sim, recorder, options.max_constraint_error) if error is None else None
     if conflict is not None:
@@ -122,7 +123,7 @@ def _conflicts(sim: Simulation, recorder: Recorder, limit: float | None) -> dict
 
 
 def write_outputs(scene: ir.Scene, result: RunResult, out: Path) -> list:
-    """The files of ARCHITECTURE.md's contract, each written atomically; report.json last. Returns their paths."""
+    """The files of docs/outputs.md's contract, each written atomically; report.json last. Returns their paths."""
     written = [out / "trajectory.npz", out / "events.json", out / "ir.json"]
     write_npz(written[0], result.recorder.arrays())
     write_json(written[1], result.simulation.events)
@@ -173,7 +174,7 @@ def write_extras(scene: ir.Scene, result: RunResult, out: Path, options: RunOpti
 
         written.append(write_viewer(out / "viewer.html", scene, arrays, options.folder, audio=audio))
     if options.plots:
-        from .plots import write_plots
+        from .outputs.plots import write_plots
 
         written += write_plots(out / "plots", arrays, audio, title=scene.name)
     return written
@@ -236,7 +237,7 @@ def _broken_tolerance(where: str, report: dict) -> bool:
     return True
 
 
-def _report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, error) -> dict:
+def run_report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, error) -> dict:
     plan = sim.plan
     arrays = recorder.arrays()
     energy = arrays["energy"]

@@ -1,7 +1,7 @@
 """Signals from sound: the envelope of a recorded breath and a live microphone, as functions of time.
 
 A wind's speed may be written `envelope("assets/breath.wav", attack = 20 ms, release = 300 ms) * 4 m/s` or
-`mic() * 4 m/s`. The envelope follower (SOUND.md) is a one-pole filter on |x| with separate attack and release
+`mic() * 4 m/s`. The envelope follower (docs/design/sound.md#section-9) is a one-pole filter on |x| with separate attack and release
 time constants:
 
     y[n] = y[n-1] + a (|x[n]| - y[n-1]),   a = 1 - exp(-1 / (tau fs)),   tau = attack if |x[n]| > y[n-1]
@@ -13,7 +13,7 @@ interpolation; 0 before the recording starts and after it ends). Its peak is sca
 `normalize = 0`. soundfile is imported only when a scene names a recording, sounddevice only when a run asks
 for the microphone (`isaac run --mic`).
 
-`signal_functions(...)` gives the callables `isaac_lang.expr.evaluate` takes as `functions`:
+`signal_functions(...)` gives the callables `isaac_ir.expr.evaluate` takes as `functions`:
 name -> f(env, *args, **kwargs), env["t"] a float or an array of times.
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from isaac_lang.diagnostics import Diagnostic, SceneError
+from isaac_ir.diagnostics import Diagnostic, SceneError
 
 # s: default attack time constant of the follower (a breath builds up in tens of milliseconds)
 DEFAULT_ATTACK = 0.02

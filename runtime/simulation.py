@@ -1,6 +1,6 @@
-"""Stage 5, the step loop, and the embedding API: a Simulation steps a plan and exposes its state.
+"""Stage 5, the step loop: a Simulation steps a plan and exposes its state.
 
-    sim = Simulation.from_file("scenes/pendulum.isaac", overrides={"theta0": "30 deg"})
+    sim = Simulation(compile_plan(scene, PlanOptions()))   # (isaac.api builds one from a scene file or text)
     sim.advance_to(2.0)
     sim.state.x[sim.body("bob")]
 
@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -27,8 +26,8 @@ from .core.entries import measure, row_errors, state_constraint_error, state_ene
 from .core.jit import CompileNotice
 from .core.record import RUNAWAY_CONSTRAINT_ERROR, Frames
 from .core.record import CONTACT, DONE, RUNAWAY_BODY
-from .kinematics import on_path, window_switches
-from .plan import Plan, PlanOptions, compile_plan
+from .plan.kinematics import on_path, window_switches
+from .plan import Plan
 
 # a run that hands its frames to a caller one by one (watch, live) steps at most this many steps per kernel call
 ON_FRAME_STEPS = 2000
@@ -66,10 +65,9 @@ class _FrameSink:
 
 
 class Simulation:
-    def __init__(self, plan: Plan, source: dict | None = None):
+    def __init__(self, plan: Plan):
         self.plan = plan
         self.state = State.initial(plan)
-        self.source = source or {}
         self.events: list = []
         self._compile_notice = CompileNotice.begin(measure, *self._stepper_class(plan).entries)
         self.compiled = CompiledPlan(plan)
@@ -113,22 +111,6 @@ class Simulation:
         from .dynamics import DynamicsStepper
 
         return DynamicsStepper
-
-    @classmethod
-    def from_file(cls, path, overrides: dict | None = None, **options) -> "Simulation":
-        from isaac_lang.load import load_scene
-
-        scene = load_scene(Path(path), overrides).scene
-        plan = compile_plan(scene, PlanOptions(folder=Path(path).parent, **options))
-        return cls(plan, {"path": Path(path), "overrides": overrides or {}, "options": options})
-
-    @classmethod
-    def from_text(cls, text: str, overrides: dict | None = None, folder=".", **options) -> "Simulation":
-        from isaac_lang.load import load_text
-
-        scene = load_text(text, overrides=overrides, folder=folder).scene
-        plan = compile_plan(scene, PlanOptions(folder=Path(folder), **options))
-        return cls(plan, {"text": text, "folder": folder, "overrides": overrides or {}, "options": options})
 
     # -- queries ------------------------------------------------------------------------------------------
 
@@ -218,20 +200,16 @@ class Simulation:
         springs = self.plan.forces.springs
         return 0 if springs is None else len(springs.stiffness)
 
-    def set_parameter(self, name: str, value: str) -> None:
-        """Change a scene parameter (a `let`) mid-run: the scene is re-lowered and re-planned, and every body
-        that still exists keeps its current state."""
-        overrides = {**self.source.get("overrides", {}), name: value}
-        if "path" in self.source:
-            fresh = Simulation.from_file(self.source["path"], overrides, **self.source["options"])
-        else:
-            fresh = Simulation.from_text(self.source["text"], overrides, self.source["folder"], **self.source["options"])
-        old = {n: i for i, n in enumerate(self.plan.names)}
-        for j, body in enumerate(fresh.plan.names):
-            if body in old and fresh.plan.dynamic[j]:
-                fresh.state.y[j] = self.state.y[old[body]]
-        fresh.state.t, fresh.state.steps = self.state.t, self.state.steps
-        self.__dict__.update(fresh.__dict__)
+    def carry_on(self, plan: Plan) -> None:
+        """Go on with another plan of the same scene (a parameter changed, the scene re-planned by the caller):
+        every dynamic body that still exists keeps its state, and time and steps go on."""
+        before, names = self.state, list(self.plan.names)
+        Simulation.__init__(self, plan)  # (the engine's state only: what a subclass adds stays)
+        old = {name: i for i, name in enumerate(names)}
+        for j, body in enumerate(plan.names):
+            if body in old and plan.dynamic[j]:
+                self.state.y[j] = before.y[old[body]]
+        self.state.t, self.state.steps = before.t, before.steps
 
     # -- stepping -----------------------------------------------------------------------------------------
 

@@ -9,7 +9,7 @@ import math
 import pytest
 
 from benchmarks import cases, common, report, stress, work_precision
-from isaac_lang.cli import build_parser
+from isaac.cli import build_parser
 
 
 def test_the_command_has_bench():

@@ -1,4 +1,4 @@
-"""Sweeps (runtime/sweep, `isaac sweep`): the grid, the bundle, the table, resuming; on a local cluster, and on
+"""Sweeps (isaac/sweep, `isaac sweep`): the grid, the bundle, the table, resuming; on a local cluster, and on
 a scheduler and a worker started here on loopback. The pendulum's period of every variant against the elliptic
 integral for that variant's own amplitude."""
 from __future__ import annotations
@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from scipy.special import ellipk
 
-from isaac_lang.cli import main
-from isaac_lang.diagnostics import SceneError
-from isaac_runtime.sweep import sweep
-from isaac_runtime.sweep.bundle import collect, variant_id
-from isaac_runtime.sweep.command import command_variants
-from isaac_runtime.sweep.grid import parse_axis, si_value, variants_of
+from isaac.cli import main
+from isaac_ir.diagnostics import SceneError
+from isaac.sweep import sweep
+from isaac.sweep.bundle import collect, variant_id
+from isaac.sweep.command import command_variants
+from isaac.sweep.grid import parse_axis, si_value, variants_of
 
 from .runtime.test_scenes import measured_period
 
@@ -237,8 +237,8 @@ def test_cli_on_a_scheduler_and_workers_started_on_loopback(scheduler, tmp_path,
 # ---- what `isaac run` does not pay for --------------------------------------------------------------------
 
 def test_run_and_the_sweep_package_import_neither_dask_nor_pandas():
-    code = ("import sys, isaac_lang.cli, isaac_runtime.run, isaac_runtime.sweep, isaac_runtime.sweep.command; "
-            "isaac_lang.cli.build_parser(); "
+    code = ("import sys, isaac.cli, isaac_runtime.run, isaac.sweep, isaac.sweep.command; "
+            "isaac.cli.build_parser(); "
             "print(sorted(m for m in ('dask', 'distributed', 'pandas', 'pyarrow') if m in sys.modules))")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert result.stdout.strip() == "[]"

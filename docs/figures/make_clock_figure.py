@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from isaac_lang.load import load_scene
-from isaac_runtime.rotation import quat_to_matrix
+from isaac_runtime.core.rotation import quat_to_matrix
 from isaac_runtime.run import RunOptions, simulate
 
 ROOT = Path(__file__).resolve().parents[2]

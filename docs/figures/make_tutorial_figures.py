@@ -40,7 +40,7 @@ def shoot(url: str, name: str, size=(900, 520), budget_ms: int = 1500) -> None:
 
 class Watch:
     def __init__(self, folder: Path):
-        self.process = subprocess.Popen([sys.executable, "-m", "isaac_lang.cli", "watch", "swing.isaac",
+        self.process = subprocess.Popen([sys.executable, "-m", "isaac.cli", "watch", "swing.isaac",
                                          "--port", "0"], cwd=folder, stdout=subprocess.PIPE,
                                         stderr=subprocess.STDOUT, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
 

@@ -1,6 +1,6 @@
-"""The audio stage: sounds whose parameters come from the motion (SOUND.md, docs/sound.md).
+"""The audio stage: sounds whose parameters come from the motion (docs/design/sound.md#section-1, docs/sound.md).
 
-Imported only for scenes that have sounds (runtime/plan.py). Its passes, one module each:
+Imported only for scenes that have sounds (runtime/plan/__init__.py). Its passes, one module each:
 
     compile   graph.py     a sound's `play` expression -> a tree of nodes (nodes.py, impact.py, scrape.py,
                            wind_sound.py; modes from modal.py, resonators from resonator.py)

@@ -1,6 +1,6 @@
 """Audio stage, excitation: how long a contact lasts, and the force pulse it puts into the modes.
 
-A real contact lasts a time tau, which low-passes the excitation (SOUND.md). The pulse is a half-sine of
+A real contact lasts a time tau, which low-passes the excitation (docs/design/sound.md#section-5). The pulse is a half-sine of
 length tau: its spectrum falls by 3 dB near 0.59 / tau and has its first null at 1.5 / tau.
 
 Contact duration, in order of preference:

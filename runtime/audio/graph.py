@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from isaac_lang import expr as E
-from isaac_lang.diagnostics import Diagnostic, SceneError, SourcePos, did_you_mean
+from isaac_ir import expr as E
+from isaac_ir.diagnostics import Diagnostic, SceneError, SourcePos, did_you_mean
 
-from ..rotation import quat_to_matrix
+from ..core.rotation import quat_to_matrix
 from . import modal as M
 from .excitation import body_contact_properties
 from .impact import BodyBank, Impact, Modal, Pulse, ringing_of

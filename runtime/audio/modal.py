@@ -8,7 +8,7 @@ The formulas, and where each holds (docs/sound.md has the same table):
 - free-free Euler-Bernoulli bar (box with one long edge, long cylinder or tube):
       f_n = (beta_n L)^2 / (2 pi L^2) * r_g * sqrt(E / rho),  cos(beta L) cosh(beta L) = 1,
   r_g the radius of gyration of the section: h / sqrt(12) (rectangle, bending across the thin edge h),
-  R / 2 (solid rod), sqrt(R^2 + R_i^2) / 2 (tube). For a rectangle this is SOUND.md's
+  R / 2 (solid rod), sqrt(R^2 + R_i^2) / 2 (tube). For a rectangle this is docs/design/sound.md's
   (beta_n L)^2 h / (2 pi L^2) sqrt(E / (12 rho)). Valid for slender bars (L / h > ~10: shear and rotary
   inertia add under 1 % to the first modes, more to high ones); bending across the thin edge only.
 - free rectangular thin plate (box with one thin edge): Kirchhoff plate, Rayleigh-Ritz with products of
@@ -20,7 +20,7 @@ The formulas, and where each holds (docs/sound.md has the same table):
   Lamb's (1882) frequency equation in spherical Bessel functions, eta = omega a / c_T. Exact for a sphere;
   for a cube or a thick cylinder it is a rough estimate (within ~20 % of the lowest mode).
 
-Damping (SOUND.md): Rayleigh d_n = (alpha + beta w_n^2) / 2; internal friction d_n = pi f_n tan(phi);
+Damping (docs/design/sound.md#section-3): Rayleigh d_n = (alpha + beta w_n^2) / 2; internal friction d_n = pi f_n tan(phi);
 a per-mode RT60, d = 6.91 / RT60 (ln 1000 = 6.91: -60 dB).
 """
 from __future__ import annotations
@@ -427,7 +427,7 @@ def _bar_of(shape, E, rho, count, inner) -> Modes:
 
 
 def _equivalent_radius(shape) -> float:
-    from isaac_lang.mass import volume
+    from isaac_ir.mass import volume
 
     if shape.type == "sphere":
         return shape.radius
@@ -436,7 +436,7 @@ def _equivalent_radius(shape) -> float:
 
 
 def _density(body) -> float:
-    from isaac_lang.mass import volume
+    from isaac_ir.mass import volume
 
     return body.mass / volume(body.shape)
 

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from isaac_lang import expr as E
+from isaac_ir import expr as E
 
 from ..signals import follow_envelope
 from .iir import PoleFilter

@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass, field
 import numpy as np
 
-from isaac_lang import expr as E
+from isaac_ir import expr as E
 
 from .excitation import contact_duration
 
@@ -116,7 +116,7 @@ class Hit:
     parts: dict = field(default_factory=dict)  # body -> the part of it struck (compound bodies only)
 
     def values(self) -> dict:
-        """The event signals of SOUND.md at this hit (distance and wind speed are added by the renderer)."""
+        """The event signals of docs/design/sound.md#section-1 at this hit (distance and wind speed are added by the renderer)."""
         return {"impulse": self.impulse, "speed": self.normal_speed, "normal_force": self.impulse / self.tau,
                 "t": self.time}
 
@@ -212,7 +212,7 @@ class Recorder:
 
     def local_points(self, state, point, bodies) -> dict:
         """A world point in the frame of each of the bodies, from the state at the end of the step."""
-        from ..rotation import quat_to_matrix
+        from ..core.rotation import quat_to_matrix
 
         point = np.asarray(point, float)
         out = {}
@@ -341,7 +341,7 @@ def synthetic_record(plan, events: list, end: float | None = None, contacts: dic
     """A record without a simulation: `events` as the collision stage writes them; bodies stay where the
     scene puts them. contacts: pair -> (times, sliding speeds, normal forces), the rolling speed taken equal to
     the sliding one; wind: key -> (times, speeds), key a body or ("listener", wind)."""
-    from ..rotation import quat_to_matrix
+    from ..core.rotation import quat_to_matrix
 
     end = plan.end if end is None else end
     record = new_record(plan)
@@ -468,12 +468,12 @@ class WindProbes:
 def _fields(scene, sim_plan):
     # the wind stage's own construction (runtime/wind), for winds no body feels
     from ..signals import asset_folders
-    from ..wind import _functions
+    from ..wind import wind_functions
     from ..wind.fields import compile_fields
 
     holder = sim_plan if sim_plan is not None else _Warnings()
     folders = asset_folders(scene, getattr(sim_plan, "folder", None))
-    return compile_fields(scene.winds, [_functions(scene, w, folders, holder) for w in scene.winds], scene.seed)
+    return compile_fields(scene.winds, [wind_functions(scene, w, folders, holder) for w in scene.winds], scene.seed)
 
 
 class _Warnings:

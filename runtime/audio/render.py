@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from isaac_lang import expr as E
+from isaac_ir import expr as E
 
 from .excitation import rule_duration
 from .listener import ListenerStage

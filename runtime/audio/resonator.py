@@ -1,6 +1,6 @@
 """Audio stage, the resonator bank: M two-pole resonators rendered block by block, state kept across hits.
 
-SOUND.md's resonator, per mode n (r = exp(-d/fs), w = 2 pi f / fs):
+docs/design/sound.md's resonator, per mode n (r = exp(-d/fs), w = 2 pi f / fs):
 
     y[k] = 2 r cos(w) y[k-1] - r^2 y[k-2] + b x[k]
 
@@ -155,7 +155,7 @@ def _inputs_between(inputs, lo: int, hi: int) -> list:
 
 
 def two_pole_reference(freq, decay, gain, fs: float, inputs) -> np.ndarray:
-    """SOUND.md's recursion, per mode and per sample. inputs: (N, M) array, the input of each mode."""
+    """docs/design/sound.md's recursion, per mode and per sample. inputs: (N, M) array, the input of each mode."""
     freq, decay, gain = (np.asarray(v, float) for v in (freq, decay, gain))
     inputs = np.asarray(inputs, float)
     out = np.zeros(inputs.shape[0])

@@ -1,4 +1,4 @@
-"""Audio stage, scraping and rolling (texture-based, SOUND.md; van den Doel, Kry, Pai 2001).
+"""Audio stage, scraping and rolling (texture-based, docs/design/sound.md#section-7; van den Doel, Kry, Pai 2001).
 
 A surface has a height profile h(x): a texture file, or fractal noise with power spectrum ~ 1/k^beta.
 While two bodies touch, the contact point travels x(t) = integral of v dt (v the sliding speed for

@@ -3,7 +3,7 @@ for Poisson's ratios 0.00, 0.01, ..., 0.49, as `modal.solve_sphere_roots` gives 
 fundamental and first overtone of the degrees l = 0..9). The equation depends on nu alone, so a run whose
 materials have one of these ratios looks the roots up instead of importing scipy to solve them.
 
-Regenerate (after changing the search in modal.py) with `python -m isaac_runtime.audio.sphere_roots`;
+Regenerate (after changing the search in modal.py) with `python scripts/make_sphere_roots.py`;
 tests/runtime/test_audio_modal.py checks entries against the solver.
 """
 
@@ -60,23 +60,3 @@ SPHERE_ROOTS = {
     0.48: (2.6640198848247785, 3.842062720273932, 3.9966208054160854, 5.151217442201743, 5.434252732211043, 6.232600425426905, 7.06053225297885, 7.276548350788341, 7.432841451816954, 8.298596969193353, 8.63813037683068, 9.306575669072082, 10.140355514581852, 10.304875670012597, 11.566077941583812, 12.924686425233832, 14.22864475145771, 15.489724816799912, 15.761322833871155),
     0.49: (2.6648287473981807, 3.8562990690083687, 3.9993049820456488, 5.156062814005294, 5.453850607822879, 6.239570096549872, 7.080681697528776, 7.285540018752245, 7.438122115935411, 8.309511785151306, 8.656173853353854, 9.319331060412061, 10.15509439343622, 10.319404785260817, 11.577332364804306, 12.932872498743686, 14.234395685696029, 15.493657445084693),
 }
-
-
-def _generate() -> str:
-    from .modal import solve_sphere_roots
-
-    lines = []
-    for k in range(50):
-        nu = round(k / 100, 4)
-        lines.append(f"    {nu!r}: {solve_sphere_roots(nu)!r},")
-    return "SPHERE_ROOTS = {\n" + "\n".join(lines) + "\n}\n"
-
-
-if __name__ == "__main__":
-    import pathlib
-    import re
-
-    path = pathlib.Path(__file__)
-    text = path.read_text()
-    path.write_text(re.sub(r"SPHERE_ROOTS = \{.*?\n\}\n|SPHERE_ROOTS = \{\}\n", lambda m: _generate(), text,
-                           count=1, flags=re.S))

@@ -1,4 +1,4 @@
-"""The capturing contact step (PHYSICS.md 5b): impacts, restitution and Coulomb friction of every contact solved at
+"""The capturing contact step (docs/design/physics.md section 5b): impacts, restitution and Coulomb friction of every contact solved at
 velocity level in each step, inside the compiled loop, for scenes whose contacts change too often for the exact
 path (runtime/collide: each impact located in time, each change of the contact set handed back to Python).
 
@@ -170,7 +170,7 @@ class CaptureStepper:
 
     def __init__(self, compiled, plan, stage: CaptureStage):
         from ..core.jit import Bound
-        from ..plan import energy_scale
+        from ..core.build import energy_scale
         from ..collide.collider import RESTING_SPEED, RESTING_STEPS
 
         self.compiled, self.stage = compiled, stage

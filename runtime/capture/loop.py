@@ -1,5 +1,5 @@
 """The capturing step loop, compiled: every step finds its contacts and solves them at velocity level with the
-forces, so contacts that appear, part, stick or slide never leave the loop (PHYSICS.md 5b, Moreau-Jean):
+forces, so contacts that appear, part, stick or slide never leave the loop (docs/design/physics.md section 5b, Moreau-Jean):
 
     1. forces at the step's start; v- = v + h F / m, w- = w + h I^-1 tau       (kick)
     2. broad phase (broad.py), narrow phase of every candidate pair (narrow.py), with the gap each pair can close
@@ -20,13 +20,13 @@ from __future__ import annotations
 import math
 
 from ..core.bodies import copy_state, energy, place_kinematic, rotations, runaway_body, turn, world_inverse_inertia
+from ..core.forces import step_forces
+from ..core.free_rotation import free_rotation
 from ..core.jit import entry, kernel
 from ..core.record import DONE, RUNAWAY_BODY, RUNAWAY_CONSTRAINT_ERROR, RUNAWAY_ROW, constraint_error, trace_step
 from ..core.rows import evaluate_rows
 from ..core.timetable import TIME
-from ..dynamics.projection import project
-from ..procedural.loop import step_forces
-from ..procedural.substep import _free_rotation
+from ..core.projection import project
 from .broad import find_pairs, travel
 from .data import IMPACT, PRESSING
 from .narrow import pair_contacts
@@ -186,7 +186,7 @@ def _drift(m, s, y, pseudo, moved, h):
             continue
         for k in range(3):
             y[b, k] += h * (y[b, 7 + k] + (pseudo[b, 7 + k] if moved else 0.0))
-        _free_rotation(m.bodies, b, y, s.R, s.torque, h)
+        free_rotation(m.bodies, b, y, s.R, s.torque, h)
         if moved:
             turn(y, b, h * pseudo[b, 10], h * pseudo[b, 11], h * pseudo[b, 12])
 

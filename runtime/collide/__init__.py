@@ -1,4 +1,4 @@
-"""Collisions and impacts (PHYSICS.md section 5): the collision plan, compiled once per scene.
+"""Collisions and impacts (docs/design/physics.md section 5): the collision plan, compiled once per scene.
 
     compile_collisions(scene, plan) -> CollisionPlan | None      None: no pair can ever touch (no stage at all)
     CollisionPlan.start(simulation) -> the run's stage, with before_step(h, epoch) and after_step(h, epoch)

@@ -28,7 +28,7 @@ import numpy as np
 from ..core.build import PAIR_TURN
 from ..core.contact import LIFTS, SLIPS, STOPS
 from ..core.data import COUNTER_TURNED_BACK
-from ..rotation import quat_to_matrix, world_inverse_inertia
+from ..core.rotation import quat_to_matrix, world_inverse_inertia
 from .compound import contact_elements
 from .contacts import ContactSet, set_relative
 from .events import EventLog

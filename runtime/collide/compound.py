@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ..rotation import quat_to_matrix
+from ..core.rotation import quat_to_matrix
 from .narrow import closed_form
 from .shapes import BOX, NONE, PART_BITS, PART_SHIFT, PLANE, Elements, boxes_of, empty_table, fill
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import model as M
-from ..rotation import quat_conjugate, quat_multiply
+from ..core.rotation import quat_conjugate, quat_multiply
 from .shapes import BOX, CAPSULE, FCL_POINT, PLANE, SPHERE, VERTEX_OF_B, local_feature, part_of
 
 # a contact whose points part faster than this after the impulses (m/s) is not kept: the bodies separate
@@ -382,7 +382,7 @@ def _position(x, b):
 
 
 def _rotations(q) -> np.ndarray:
-    from ..rotation import quat_to_matrix
+    from ..core.rotation import quat_to_matrix
 
     return quat_to_matrix(q)
 

@@ -61,8 +61,8 @@ class MeshShape:
 # ---- loading ---------------------------------------------------------------------------------------------------
 
 def read_mesh(path) -> tuple:
-    """(vertices (V,3), faces (F,3)) of an OBJ or STL file (isaac_lang.meshfile: the reader lowering uses too)."""
-    from isaac_lang.meshfile import MeshFileError, read_mesh as read
+    """(vertices (V,3), faces (F,3)) of an OBJ or STL file (isaac_ir.meshfile: the reader lowering uses too)."""
+    from isaac_ir.meshfile import MeshFileError, read_mesh as read
 
     try:
         return read(path)

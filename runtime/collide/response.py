@@ -1,4 +1,4 @@
-"""Impulses (Hahn 1988; Moore & Wilhelms 1988), solved together with the active joint rows (PHYSICS.md 5).
+"""Impulses (Hahn 1988; Moore & Wilhelms 1988), solved together with the active joint rows (docs/design/physics.md section 5).
 
 Rows. A contact c between bodies a and b, normal n (from b to a), arms r_a = p - x_a, r_b = p - x_b, has a
 normal row and, with friction, two tangent rows, each direction d with Jacobian blocks
@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import linsolve
+from ..core.solve import RANK_RTOL
+from .mass_matrix import apply_inverse_mass, assemble_dense
 from . import lcp
 
 # contacts in an island are re-solved at most this many generations per impact (then restitution 0)
@@ -228,7 +229,7 @@ class Response:
             tangent[has] = len(sel) + 2 * np.arange(int(has.sum()))
         mu = self.c.mu[sel]
         if not len(joint_rows):
-            W = linsolve.assemble_dense(Jc, rbc, b.inv_mass, b.inv_inertia)
+            W = assemble_dense(Jc, rbc, b.inv_mass, b.inv_inertia)
             self._delassus[sel.tobytes()] = (W, None)
             return lcp.solve(W, uc, target, mu, tangent), np.zeros(0)
         j = self.joints
@@ -249,7 +250,7 @@ class Response:
 def schur(Jj, rbj, Jc, rbc, bodies: Bodies, r_j, uc):
     """W, u0 of the contact rows with the joint rows eliminated, and back(lam_c) -> lam_j (module docstring)."""
     m = len(Jj)
-    A = linsolve.assemble_dense(np.concatenate([Jj, Jc]), np.concatenate([rbj, rbc]), bodies.inv_mass,
+    A = assemble_dense(np.concatenate([Jj, Jc]), np.concatenate([rbj, rbc]), bodies.inv_mass,
                                 bodies.inv_inertia)
     Ajj, Ajc, Acc = A[:m, :m], A[:m, m:], A[m:, m:]
     # X = A_jj^+ [r_j, A_jc]: Cholesky, or the pseudo-inverse for redundant joints
@@ -265,16 +266,16 @@ def _joint_solve(A, B):
     scale = float(np.max(np.diag(A), initial=0.0))
     if scale > 0:
         factor = lcp.cholesky(A)
-        if factor is not None and float(np.min(np.diag(factor))) ** 2 > linsolve.RANK_RTOL * scale:
+        if factor is not None and float(np.min(np.diag(factor))) ** 2 > RANK_RTOL * scale:
             return lcp.cholesky_solve(factor, B)
     w, V = np.linalg.eigh(A)
-    keep = w > linsolve.RANK_RTOL * max(scale, 1e-300)
+    keep = w > RANK_RTOL * max(scale, 1e-300)
     return V[:, keep] @ ((V[:, keep].T @ B) / w[keep, None])
 
 
 def apply_impulses(J, slots, lam, bodies: Bodies, v, w) -> None:
     """v, w += M^-1 J^T lam, per body (slots -1 skipped)."""
-    MJ = linsolve.apply_inverse_mass(J, slots, bodies.inv_mass, bodies.inv_inertia)
+    MJ = apply_inverse_mass(J, slots, bodies.inv_mass, bodies.inv_inertia)
     for s in range(2):
         inside = slots[:, s] >= 0
         if not inside.any():

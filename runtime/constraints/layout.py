@@ -4,7 +4,7 @@ A family holds k instances as parallel arrays (struct of arrays). Body indices p
 -1 means "the world" (a fixed frame: identity pose, zero velocity). Vectors marked "body frame" are expressed
 in the local frame of that body (origin at its centre of mass); "world" vectors in world coordinates.
 
-Row convention (acceleration level, PHYSICS.md section 2). Each row r touches at most two bodies,
+Row convention (acceleration level, docs/design/physics.md section 2). Each row r touches at most two bodies,
 `row_bodies[r] = (i, j)` (-1 for an unused slot), with a 1x6 Jacobian block per slot acting on (v, w):
 
     dC/dt     = J v + ct                       (ct: explicit time derivative, e.g. -dP/dt of a moving nail)

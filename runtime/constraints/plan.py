@@ -12,10 +12,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from isaac_lang import expr as E
-from isaac_lang import ir
+from isaac_ir import expr as E
+from isaac_ir import ir
 
-from ..rotation import quat_conjugate, quat_multiply, quat_to_matrix
+from ..core.rotation import quat_conjugate, quat_multiply, quat_to_matrix
 from . import layout as L
 
 # rows of each family, in the order the kernels write them, and the element tag of each

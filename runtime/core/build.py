@@ -212,3 +212,20 @@ def candidate_pairs(cp, dynamic) -> tuple:
     n = len(dynamic)
     keep = (dynamic[a] | dynamic[b]) & ~is_excluded(pair_keys(np.stack([a, b], 1), n), cp.always_excluded)
     return np.ascontiguousarray(a[keep], np.int64), np.ascontiguousarray(b[keep], np.int64)
+
+
+def energy_scale(plan) -> float:
+    """A yardstick for energy drift: m |g| (size of the scene) summed over dynamic bodies, or the kinetic
+    energy at the start, whichever is larger (a scene that starts at rest at zero height has E0 = 0)."""
+    with np.errstate(over="ignore", invalid="ignore"):  # (a hostile scene's speeds: an infinite scale)
+        return _energy_scale(plan)
+
+
+def _energy_scale(plan) -> float:
+    d = plan.dynamic
+    extent = float(np.ptp(plan.x0[d], axis=0).max()) if d.sum() > 1 else 1.0
+    g = float(np.linalg.norm(plan.gravity))
+    potential = float(np.sum(plan.mass[d]) * g * max(extent, 1e-3))
+    kinetic = 0.5 * float(np.sum(plan.mass[d] * np.sum(plan.v0[d] ** 2, axis=1)))
+    rotational = 0.5 * float(np.einsum("ni,nij,nj->", plan.w0[d], plan.inertia_body[d], plan.w0[d]))
+    return max(potential, kinetic + rotational, 1e-12)

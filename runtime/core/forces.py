@@ -6,7 +6,10 @@ from __future__ import annotations
 
 import math
 
+from ..wind.kernels import wind_relax
+from .bodies import rotations
 from .jit import kernel
+from .timetable import TIME
 from .vec import add3, cross3, dot3, rotate, rotate_t, row3, scale3, sub3
 
 
@@ -87,3 +90,15 @@ def weights(bodies, force, torque):
         for c in range(3):
             force[b, c] = bodies.weight[b, c]
             torque[b, c] = 0.0
+
+
+@kernel
+def step_forces(m, s, y, table, j, h):
+    """force, torque <- gravity, springs, loads at the step's start; bodies in the wind: relaxed over h."""
+    rotations(y, s.R)
+    weights(m.bodies, s.force, s.torque)
+    add_springs(m.springs, y, s.R, s.force, s.torque)
+    add_loads(m.loads, table, j, s.R, s.force, s.torque)
+    if len(m.wind.body):
+        speeds = table[j, m.wind_column:m.wind_column + m.wind_count]
+        wind_relax(m.wind, y, s.R, speeds, table[j, TIME], h, s.force, s.torque, s.air)

@@ -29,7 +29,7 @@ import sys
 import time
 from pathlib import Path
 
-from isaac_lang.imports import lazily, without
+from isaac_ir.imports import lazily, without
 
 from ..outputs import write_atomic
 

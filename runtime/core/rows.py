@@ -1,4 +1,4 @@
-"""Constraint rows, compiled: C, J, ct and bias of every family (PHYSICS.md section 3).
+"""Constraint rows, compiled: C, J, ct and bias of every family (docs/design/physics.md section 3).
 
 Conventions (constraints/layout.py): a row touches the bodies of its two slots; its Jacobian block per slot acts
 on (v, w), w the world angular velocity, r = R p the world arm of a body point p;

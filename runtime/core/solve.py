@@ -1,4 +1,4 @@
-"""The multiplier system, compiled: assemble A = J M^-1 J^T, factor A = L L^T, solve (PHYSICS.md section 2).
+"""The multiplier system, compiled: assemble A = J M^-1 J^T, factor A = L L^T, solve (docs/design/physics.md section 2).
 
 The pattern of L and the couplings come from structure.py (once per epoch); here only arithmetic, in the
 order of the Active rows:

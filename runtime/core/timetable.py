@@ -4,17 +4,17 @@ Kinematic paths (pose, velocity, acceleration), moving constraint parameters (a 
 derivatives), user loads and the winds' speeds depend on t and not on the state. Before a kernel advances N steps
 of h, the table is evaluated at the grid t0 + i h / D, i = 0 .. N D, with D grid points per step (2 for the
 dynamics plan: RK4's stages at t, t + h/2 and t + h; the substeps for the procedural plan), each expression for
-all times at once by the expression interpreter (isaac_lang/expr.py, vectorized over t). The kernels read row
+all times at once by the expression interpreter (isaac_ir/expr.py, vectorized over t). The kernels read row
 i of the table: exact values at the stage times, with no Python in the loop. Column TIME holds the time itself.
 
-Angular velocity of an orientation path q(t), in the world frame (runtime/kinematics.py):
+Angular velocity of an orientation path q(t), in the world frame (runtime/plan/kinematics.py):
     w = 2 vec(dq/dt q*)         dw/dt = 2 vec(d2q/dt2 q* + dq/dt dq*/dt)
 """
 from __future__ import annotations
 
 import numpy as np
 
-from isaac_lang import expr as E
+from isaac_ir import expr as E
 
 from . import model as M
 

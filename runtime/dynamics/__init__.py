@@ -1,5 +1,5 @@
 """The dynamics plan: Lagrange-multiplier constrained dynamics, integrated by RK4, midpoint or semi-implicit Euler,
-with the held constraints projected back onto their manifold after every step (PHYSICS.md section 2).
+with the held constraints projected back onto their manifold after every step (docs/design/physics.md section 2).
 
     accelerations.py   the right-hand side: forces, then the multiplier solve (core/solve.py)
     projection.py      positions and velocities back on the constraints after a step
@@ -9,10 +9,8 @@ with the held constraints projected back onto their manifold after every step (P
 """
 from __future__ import annotations
 
-import numpy as np
-
+from ..core.build import energy_scale
 from ..core.jit import Bound
-from ..plan import energy_scale
 from ..core.rest import REST_STEPS
 from .integrate import GRID, INTEGRATORS, run
 

@@ -46,7 +46,7 @@ from ..core.record import DONE, after_step, record
 from ..core.rest import inputs_still, rests, still_after, still_at_end, still_at_start
 from ..core.vec import dot3, rotate, rotate_t
 from .accelerations import accelerations
-from .projection import project, settle_rows
+from ..core.projection import project, settle_rows
 
 RK4, MIDPOINT, EULER = 0, 1, 2
 INTEGRATORS = {"rk4": RK4, "midpoint": MIDPOINT, "euler": EULER}

@@ -45,7 +45,7 @@ class MeshFileError(ValueError):
 # ---- shapes -----------------------------------------------------------------------------------------------
 
 def tessellate(shape, plane_size: float = 10.0, folder: Path | None = None) -> TriMesh:
-    """The triangles of an IR shape (`isaac_lang.ir.Shape`) in the body frame."""
+    """The triangles of an IR shape (`isaac_ir.ir.Shape`) in the body frame."""
     kind = shape.type
     if kind == "sphere":
         return sphere(shape.radius)
@@ -69,7 +69,7 @@ def tessellate(shape, plane_size: float = 10.0, folder: Path | None = None) -> T
 
 def compound(shape, plane_size: float = 10.0, folder: Path | None = None) -> TriMesh:
     """The parts of a compound body, each tessellated and placed in the body frame: p = offset + at + R p_part."""
-    from isaac_runtime.rotation import quat_to_matrix
+    from isaac_runtime.core.rotation import quat_to_matrix
 
     positions, normals, triangles, count = [], [], [], 0
     for part in shape.parts:
@@ -274,7 +274,7 @@ def plane_size(position: np.ndarray) -> float:
 
 def matrices(position: np.ndarray, orientation: np.ndarray) -> np.ndarray:
     """Body-to-world 4x4 matrices (..., 4, 4) from positions (..., 3) and quaternions (..., 4) (w, x, y, z)."""
-    from isaac_runtime.rotation import quat_to_matrix
+    from isaac_runtime.core.rotation import quat_to_matrix
 
     q = orientation / np.linalg.norm(orientation, axis=-1, keepdims=True)
     out = np.zeros(position.shape[:-1] + (4, 4))

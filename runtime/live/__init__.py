@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import signals as S
-from ..extras import check_extras
+from ..plan.extras import check_extras
 from ..plan import PlanOptions, compile_plan
 from ..simulation import Simulation
 
@@ -43,11 +43,13 @@ class LiveOptions:
     port: int | None = None  # None: 8766, or any free port when it is taken
     browser: bool = True
     mic: str | None = None  # None: no input; "": the default device; a device name or index; a sound file
-    sliders: list = field(default_factory=list)  # the declared parameters the page offers (isaac_lang.live_command)
+    sliders: list = field(default_factory=list)  # the declared parameters the page offers (isaac.live_command)
     viewer: bool = True
     verbosity: int = 0
     scene_warnings: tuple = ()
     max_constraint_error: float | None = None
+    # overrides -> the plan of the scene with them (the application loads and plans it again): a slider's change
+    replan: object = None
 
     @property
     def folder(self) -> Path:
@@ -87,14 +89,13 @@ def run_live(scene, options: LiveOptions) -> int:
 # ---- the stages ----------------------------------------------------------------------------------------------
 
 def _simulation(scene, options: LiveOptions) -> Simulation:
-    """The plan of `isaac run`, and its simulation (which re-plans itself for a parameter)."""
+    """The plan of `isaac run`, and its simulation."""
     plan_options = {"solver": options.solver, "step": options.step, "until": options.until}
     plan = compile_plan(scene, PlanOptions(folder=options.folder, **plan_options))
     check_extras(plan)
     if options.verbosity > 0:
         print(plan.describe(), file=sys.stderr)
-    source = {"path": Path(options.scene_path), "overrides": dict(options.overrides), "options": plan_options}
-    return Simulation(plan, source)
+    return Simulation(plan)
 
 
 def _serve(sim: Simulation, breath, options: LiveOptions):
@@ -128,7 +129,8 @@ def _serve(sim: Simulation, breath, options: LiveOptions):
         if options.verbosity >= -1:
             print(text, file=sys.stderr, flush=True)
 
-    session = LiveSession(sim, sim.plan.frame_times, breath, publish, server.commands, say, describe, sliders)
+    session = LiveSession(sim, sim.plan.frame_times, breath, publish, server.commands, say, describe, sliders,
+                          replan=options.replan, overrides=options.overrides)
     holder["session"] = session
     if options.verbosity >= -1:
         what = f"; breath from {breath.source.name}" if breath is not None else ""

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ..rotation import quat_to_matrix
+from ..core.rotation import quat_to_matrix
 
 # Hz: how briskly a dragged body follows the pointer, and the damping ratio of that motion (1: critical)
 DRAG_FREQUENCY = 2.0

@@ -17,8 +17,8 @@ from __future__ import annotations
 import math
 
 from .. import checks
-from ..outputset import OutputSet
-from ..run import RunResult, _report, set_info, write_extras, write_outputs, RunOptions
+from ..outputs.outputset import OutputSet
+from ..run import RunResult, run_report, set_info, write_extras, write_outputs, RunOptions
 
 
 def realtime_section(result, breath, hub, frame_period: float) -> dict:
@@ -40,7 +40,7 @@ def build_report(result, options, breath, hub, frame_period: float) -> dict:
     recorder = result.recorder
     energy0 = float(recorder.energy[0]) if recorder.count and math.isfinite(recorder.energy[0]) else \
         result.simulation.energy()
-    report = _report(result.simulation, recorder, energy0, result.wall, result.error)
+    report = run_report(result.simulation, recorder, energy0, result.wall, result.error)
     report["warnings"] = list(options.scene_warnings) + report["warnings"]
     report["checks"] = {"max_constraint_error": checks.constraint_check(report, options.max_constraint_error)}
     report["realtime"] = realtime_section(result, breath, hub, frame_period)

@@ -26,7 +26,7 @@ from collections import deque
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
-from isaac_lang.diagnostics import Diagnostic, SceneError
+from isaac_ir.diagnostics import Diagnostic, SceneError
 
 LOOPBACK = "127.0.0.1"
 DEFAULT_PORT = 8766

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from isaac_lang.diagnostics import SceneError
+from isaac_ir.diagnostics import SceneError
 
 from ..outputs import Recorder
 from ..simulation import NumericalError
@@ -76,8 +76,10 @@ class LiveSession:
     """The loop (module docstring). publish(kind, data) sends to the page; say(text) to the terminal."""
 
     def __init__(self, simulation, frame_times, breath, publish, commands, say, describe_scene,
-                 parameters: dict, clock=time.monotonic, sleep=time.sleep):
+                 parameters: dict, clock=time.monotonic, sleep=time.sleep, replan=None, overrides=None):
         self.sim = simulation
+        self.replan = replan  # overrides -> the scene's plan with them (a slider's change; the application's)
+        self.overrides = dict(overrides or {})
         self.frames = np.asarray(frame_times, float)
         self.breath = breath
         self.publish, self.commands, self.say = publish, commands, say
@@ -188,8 +190,9 @@ class LiveSession:
             return
         began = self.clock()
         sim, old_events, old_names = self.sim, list(self.sim.events), list(self.sim.plan.names)
+        overrides = {**self.overrides, name: value}
         try:
-            sim.set_parameter(name, value)
+            sim.carry_on(self.replan(overrides))
         except SceneError as error:
             self._notice(f"{name} = {value}: {error.diagnostics[0].message if error.diagnostics else error}", "error")
             self.pacer.forgive(began)
@@ -200,6 +203,7 @@ class LiveSession:
             self.audio.follow(sim, same and sim.plan.names == old_names)
         self.drag.follow(sim)
         self.parameters[name] = value
+        self.overrides = overrides
         seconds = self.clock() - began
         self.replans.append({"t": float(sim.state.t), "name": name, "value": value, "seconds": seconds})
         if not same:

@@ -1,4 +1,4 @@
-"""The procedural plan (PHYSICS.md section 6): the dissertation's position-level method in the form position-based
+"""The procedural plan (docs/design/physics.md section 6): the dissertation's position-level method in the form position-based
 dynamics has today (XPBD with substeps, Mueller et al. 2020), compiled.
 
     substep.py   one substep's three stages: move (with the free rigid body's exact invariants), put back

@@ -15,27 +15,14 @@ import math
 from ..core.bodies import copy_state, place_kinematic, rotations
 from ..core.contact import add_impulses, friction_impulses, stopped_slips
 from ..core.data import COUNTER_TURNED_BACK
-from ..core.forces import add_loads, add_springs, weights
+from ..core.forces import step_forces
 from ..core.jit import entry, kernel
 from ..core.record import DONE, after_step, record
 from ..core.rest import rests, still_after, still_at_end, still_at_start
 from ..core.rows import apply_drivers
 from ..core.timetable import TIME
-from ..wind.kernels import wind_relax
 from .project import direct, keep_rows, start_directions, sweep
 from .substep import SHAKE_MAX_TURN, predict, put_back
-
-
-@kernel
-def step_forces(m, s, y, table, j, h):
-    """force, torque <- gravity, springs, loads at the step's start; bodies in the wind: relaxed over h."""
-    rotations(y, s.R)
-    weights(m.bodies, s.force, s.torque)
-    add_springs(m.springs, y, s.R, s.force, s.torque)
-    add_loads(m.loads, table, j, s.R, s.force, s.torque)
-    if len(m.wind.body):
-        speeds = table[j, m.wind_column:m.wind_column + m.wind_count]
-        wind_relax(m.wind, y, s.R, speeds, table[j, TIME], h, s.force, s.torque, s.air)
 
 
 @kernel

@@ -2,7 +2,7 @@
 (Gauss-Seidel), or all rows at once (`direct`: Newton iterations of the linearized projection with the sparse
 Cholesky of the dynamics plan, Deul et al. 2018's direct position-based solver). substep.py states the method.
 
-Self-assembly (PHYSICS.md section 4). The dynamics plan lets a row that switches on apart close along
+Self-assembly (docs/design/physics.md section 4). The dynamics plan lets a row that switches on apart close along
 Baumgarte's curve C'' + kd C' + ks C = 0; a projection would close it in one substep, so a row still assembling
 is projected to that very curve: target(s) = C(s) with C(0) = C0, C'(0) = D0 (at the switch), s the time since.
 Once the curve's envelope is below exp(-CURVE_SPAN) of its start the row is held (target 0).
@@ -22,7 +22,7 @@ from ..core.jit import kernel
 from ..core.rows import apply_drivers, instance_rows, row_motion, write_rows
 from ..core.solve import apply_impulses, assemble, factor, inverse_mass_times_J, move_along, substitute
 from ..core.vec import quat_to_matrix, rotate
-from .substep import MIN_ALIGNMENT, _effective_mass, _solve_small, velocity_row_error
+from .substep import MIN_ALIGNMENT, effective_mass, solve_small, velocity_row_error
 
 Sweep = namedtuple("Sweep", "first last")
 Curves = namedtuple("Curves", "on C0 D0")
@@ -107,8 +107,8 @@ def _project_block_once(m, act, curves, s, y, first, last, t, hs, shake, lam):
     use_start = shake
     for i in range(n):
         r = act.rows[first + i]
-        now = _effective_mass(cons, bodies, s.inv_inertia, r, J, i, J, i)
-        start = _effective_mass(cons, bodies, s.inv_inertia, r, J, i, D, i)
+        now = effective_mass(cons, bodies, s.inv_inertia, r, J, i, J, i)
+        start = effective_mass(cons, bodies, s.inv_inertia, r, J, i, D, i)
         if not start > MIN_ALIGNMENT * now:
             use_start = False
     if not use_start:
@@ -122,7 +122,7 @@ def _project_block_once(m, act, curves, s, y, first, last, t, hs, shake, lam):
         r = act.rows[first + i]
         alpha = cons.compliance[r] / (hs * hs)
         for e in range(n):
-            K[i, e] = _effective_mass(cons, bodies, s.inv_inertia, r, J, i, D, e)
+            K[i, e] = effective_mass(cons, bodies, s.inv_inertia, r, J, i, D, e)
         if K[i, i] > 0.0:
             any_mass = True
         K[i, i] += alpha
@@ -132,7 +132,7 @@ def _project_block_once(m, act, curves, s, y, first, last, t, hs, shake, lam):
         rhs[i] = -error - alpha * lam[first + i]
     if not any_mass:
         return 0.0
-    _solve_small(K, rhs, n, dlam)
+    solve_small(K, rhs, n, dlam)
     for i in range(n):
         lam[first + i] += dlam[i]
     # dx_b = W_b D_b^T dlam for each slot

@@ -1,4 +1,4 @@
-"""One substep of the procedural plan, compiled: move, project, put the inertia back (PHYSICS.md section 6).
+"""One substep of the procedural plan, compiled: move, project, put the inertia back (docs/design/physics.md section 6).
 
 1. move (`predict`): every dynamic body unconstrained by its forces over hs. Linear: v += hs F / m, x += hs v.
    Angular, the free rigid body's own motion, conserving what it conserves: with L the body-frame angular
@@ -30,59 +30,14 @@
 """
 from __future__ import annotations
 
-import math
-
-from ..core.bodies import copy_state, turn, turn_since
+from ..core.bodies import copy_state, turn_since
+from ..core.free_rotation import free_rotation
 from ..core.jit import kernel
-from ..core.vec import add3, cross3, quat_mul, quat_to_matrix, rotate, rotate_t, scale3, sub3
 
 # SHAKE's direction only while no body turns by more than this in a substep, rad
 SHAKE_MAX_TURN = 0.25
 # use the start-of-substep direction only while its effective mass is at least this fraction of the current one
 MIN_ALIGNMENT = 0.5
-# the fixed-point iteration of the free rotation stops at this relative change of L (or after ROTATION_ITERATIONS)
-ROTATION_TOLERANCE = 1e-15
-ROTATION_ITERATIONS = 30
-
-
-@kernel
-def _cayley_turn(a0, a1, a2):
-    """The unit quaternion of the Cayley map of the rotation vector a: (1, a/2) / |(1, a/2)|."""
-    h0, h1, h2 = 0.5 * a0, 0.5 * a1, 0.5 * a2
-    norm = math.sqrt(1.0 + h0 * h0 + h1 * h1 + h2 * h2)
-    return 1.0 / norm, h0 / norm, h1 / norm, h2 / norm
-
-
-@kernel
-def _free_rotation(bodies, b, y, R, torque, hs):
-    """Body b's orientation and angular velocity moved by hs of free rotation with the torque's impulse
-    (module docstring, stage 1). R[b] is current on entry and on return."""
-    # L = I_b R^T w + hs R^T tau (body frame)
-    u = rotate_t(R, b, (y[b, 10], y[b, 11], y[b, 12]))
-    L = add3(rotate(bodies.inertia, b, u), scale3(hs, rotate_t(R, b, (torque[b, 0], torque[b, 1], torque[b, 2]))))
-    Lp = L
-    q = (1.0, 0.0, 0.0, 0.0)
-    size = abs(L[0]) + abs(L[1]) + abs(L[2])
-    for _ in range(ROTATION_ITERATIONS):
-        # u_mid = I_b^-1 (L + L') / 2, Q = cay(hs u_mid), L' = Q^T L
-        u_mid = rotate(bodies.inv_inertia, b, scale3(0.5, add3(L, Lp)))
-        q = _cayley_turn(hs * u_mid[0], hs * u_mid[1], hs * u_mid[2])
-        # Q^T L = L turned by the conjugate of q: L - 2 q_w (v x L) + 2 v x (v x L), v = vec(q)
-        v = (q[1], q[2], q[3])
-        c = cross3(v, L)
-        new = add3(sub3(L, scale3(2.0 * q[0], c)), scale3(2.0, cross3(v, c)))
-        change = abs(new[0] - Lp[0]) + abs(new[1] - Lp[1]) + abs(new[2] - Lp[2])
-        Lp = new
-        if change <= ROTATION_TOLERANCE * size:
-            break
-    # R' = R Q: q' = q_b * q (a turn in the body frame)
-    turned = quat_mul((y[b, 3], y[b, 4], y[b, 5], y[b, 6]), q)
-    norm = math.sqrt(turned[0] ** 2 + turned[1] ** 2 + turned[2] ** 2 + turned[3] ** 2)
-    y[b, 3], y[b, 4], y[b, 5], y[b, 6] = turned[0] / norm, turned[1] / norm, turned[2] / norm, turned[3] / norm
-    quat_to_matrix(y[b, 3], y[b, 4], y[b, 5], y[b, 6], R, b)
-    # w' = R' I_b^-1 L'
-    w = rotate(R, b, rotate(bodies.inv_inertia, b, Lp))
-    y[b, 10], y[b, 11], y[b, 12] = w
 
 
 @kernel
@@ -97,7 +52,7 @@ def predict(m, s, y, hs):
             # v += hs F / m, x += hs v
             y[b, 7 + c] += hs * im * s.force[b, c]
             y[b, c] += hs * y[b, 7 + c]
-        _free_rotation(bodies, b, y, s.R, s.torque, hs)
+        free_rotation(bodies, b, y, s.R, s.torque, hs)
     copy_state(y, s.ys)
 
 
@@ -138,7 +93,7 @@ def velocity_row_error(cons, bodies, r, y, ys, J, hs):
 
 
 @kernel
-def _solve_small(K, rhs, n, out):
+def solve_small(K, rhs, n, out):
     """out <- K^-1 rhs for n <= 3 by Gaussian elimination with partial pivoting (K, rhs overwritten); a pivot of 0
     leaves that unknown 0."""
     for c in range(n):
@@ -165,7 +120,7 @@ def _solve_small(K, rhs, n, out):
 
 
 @kernel
-def _effective_mass(cons, bodies, inv_inertia, r, J, i, D, e):
+def effective_mass(cons, bodies, inv_inertia, r, J, i, D, e):
     """J_i,r W D_e^T: row i of J against row e of D, through the inverse masses of the slots' bodies."""
     k = cons.row_instance[r]
     total = 0.0

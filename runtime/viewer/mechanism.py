@@ -264,7 +264,7 @@ def _number(v) -> float | None:
 def _vector(v) -> list:
     """A vector parameter as drawn: its value, or where an expression of t puts it at t = 0 (a moving nail's
     target, a turning plane's normal: the page draws the joint where it starts)."""
-    from isaac_lang import expr as E
+    from isaac_ir import expr as E
 
     value = _value(v)
     if isinstance(value, E.Expr):

@@ -1,4 +1,4 @@
-"""Wind stage: air velocity fields and the aerodynamic drag they put on bodies (PHYSICS.md section 7).
+"""Wind stage: air velocity fields and the aerodynamic drag they put on bodies (docs/design/physics.md section 7).
 
     fields.py      u(x, t): uniform and source winds, falloff, cone, their sum
     speed.py       a wind's speed expression s(t), compiled once into closures (no tree walk per call)
@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from isaac_lang import expr as E
-from isaac_lang import ir
-from isaac_lang.diagnostics import Diagnostic, SceneError, SourcePos
+from isaac_ir import expr as E
+from isaac_ir import ir
+from isaac_ir.diagnostics import Diagnostic, SceneError, SourcePos
 
 from .. import signals as S
 from . import turbulence
@@ -152,7 +152,7 @@ def compile_wind(scene: ir.Scene, plan, folder=None) -> WindPlan | None:
     if not chosen:
         return None
     folders = S.asset_folders(scene, folder if folder is not None else getattr(plan, "folder", None))
-    functions = [_functions(scene, wind, folders, plan) for wind in scene.winds]
+    functions = [wind_functions(scene, wind, folders, plan) for wind in scene.winds]
     fields = compile_fields(scene.winds, functions, scene.seed)
     for w, wind in enumerate(scene.winds):
         _try_speed(fields, w, wind, scene.time.start)
@@ -166,7 +166,7 @@ def compile_wind(scene: ir.Scene, plan, folder=None) -> WindPlan | None:
     return WindPlan(fields, bodies, densities[-1], model, plan.step, plan.n)
 
 
-def _functions(scene: ir.Scene, wind: ir.Wind, folders: list, plan) -> dict:
+def wind_functions(scene: ir.Scene, wind: ir.Wind, folders: list, plan) -> dict:
     """Signal functions of one wind: envelopes preloaded (a missing file is a scene error now), mic, noise."""
     envelopes = {}
     uses_mic = False

@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from isaac_lang import expr as E
-from isaac_lang import ir
+from isaac_ir import expr as E
+from isaac_ir import ir
 
 from .speed import SpeedOfTime
 from .turbulence import GustField

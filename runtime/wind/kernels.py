@@ -1,5 +1,5 @@
 """Wind stage, compiled: the air velocity u(x, t) and the drag it puts on bodies, as kernels the compiled step
-calls many steps at a time, with no Python per force evaluation (PHYSICS.md section 7).
+calls many steps at a time, with no Python per force evaluation (docs/design/physics.md section 7).
 
     WindModel          the winds and the bodies in them, as plain arrays: one compiled signature for every scene
     wind_model(wind)   built from a WindPlan (which stays the reference); empty_wind_model() without a wind
@@ -36,13 +36,13 @@ from collections import namedtuple
 
 import numpy as np
 
-from isaac_lang import expr as E
+from isaac_ir import expr as E
 
 from ..core.jit import inlined, kernel
 from ..core.vec import cross3
 from .drag import TINY_SPEED
 from .fields import CONE_EDGE, CORE
-from .turbulence import _MIX1, _MIX2, OCTAVES
+from .turbulence import MIX1, MIX2, OCTAVES
 
 # the model number of each body (WindModel.model)
 FORCE, PROCEDURAL = 0, 1
@@ -273,8 +273,8 @@ def _to_body(R, a):
 @kernel
 def _splitmix(z):
     """SplitMix64's finaliser (uint64, wrapping modulo 2^64)."""
-    z = (z ^ (z >> _SHIFT30)) * _MIX1
-    z = (z ^ (z >> _SHIFT27)) * _MIX2
+    z = (z ^ (z >> _SHIFT30)) * MIX1
+    z = (z ^ (z >> _SHIFT27)) * MIX2
     return z ^ (z >> _SHIFT31)
 
 

@@ -17,7 +17,7 @@ import operator
 
 import numpy as np
 
-from isaac_lang import expr as E
+from isaac_ir import expr as E
 
 # the evaluator's binary operators (expr._evaluate_op): Python's on floats, np.power for pow
 _BINARY = {"add": operator.add, "sub": operator.sub, "mul": operator.mul, "div": operator.truediv, "pow": np.power}

@@ -33,8 +33,8 @@ _BLEND_VARIANCE = 181.0 / 231.0
 _LATTICE_VARIANCE = 1.0 / 3.0
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
-_MIX2 = np.uint64(0x94D049BB133111EB)
+MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+MIX2 = np.uint64(0x94D049BB133111EB)
 
 
 def _einsum_core():
@@ -54,8 +54,8 @@ einsum = _einsum_core()
 
 def _splitmix(z: np.ndarray) -> np.ndarray:
     """SplitMix64 finaliser on uint64 arrays (wraps modulo 2^64)."""
-    z = (z ^ (z >> np.uint64(30))) * _MIX1
-    z = (z ^ (z >> np.uint64(27))) * _MIX2
+    z = (z ^ (z >> np.uint64(30))) * MIX1
+    z = (z ^ (z >> np.uint64(27))) * MIX2
     return z ^ (z >> np.uint64(31))
 
 

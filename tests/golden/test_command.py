@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from isaac_lang.cli import main
+from isaac.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 ISAAC = Path(sys.executable).with_name("isaac")

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from isaac_lang.golden.audio import audio_features
-from isaac_lang.golden.compare import _rotation_angle, compare_audio, compare_trajectory
-from isaac_lang.golden.record import events_of, sample_times, trajectory_at
-from isaac_lang.golden.settings import TOLERANCES, Settings, quantity
-from isaac_lang.golden.store import dumps
-from isaac_lang import units as U
+from isaac.golden.audio import audio_features
+from isaac.golden.compare import _rotation_angle, compare_audio, compare_trajectory
+from isaac.golden.record import events_of, sample_times, trajectory_at
+from isaac.golden.settings import TOLERANCES, Settings, quantity
+from isaac.golden.store import dumps
+from isaac_ir import units as U
 
 TOL = {k: v[0] for k, v in TOLERANCES.items()}
 

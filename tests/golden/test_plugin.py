@@ -1,7 +1,7 @@
 """The pytest plugin: `pytest` in a user's project collects every scene that has goldens and checks it."""
 from __future__ import annotations
 
-from isaac_lang.golden import check_scene
+from isaac.golden import check_scene
 
 pytest_plugins = ["pytester"]
 

@@ -19,7 +19,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-ISAAC = [sys.executable, "-m", "isaac_lang"]
+ISAAC = [sys.executable, "-m", "isaac"]
 # what a clean scene error looks like: `file:line:col: error: message`
 POSITIONED = re.compile(r"^\S.*:\d+:\d+: error: ", re.M)
 # a clean command-line error: argparse's (`isaac run: error: argument --step: ...`) or our own `isaac: error:`

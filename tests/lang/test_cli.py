@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from isaac_lang.cli import main
+from isaac.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = sorted((ROOT / "scenes").glob("*.isaac"))

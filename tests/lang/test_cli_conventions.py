@@ -1,4 +1,4 @@
-"""The command line's conventions: --version, `python -m isaac_lang`, -q/-v, option values with units and checked
+"""The command line's conventions: --version, `python -m isaac`, -q/-v, option values with units and checked
 where they are given, exit codes 0/1/2/3, warnings on stderr (--strict: errors), assets read by `check`, extras
 checked with the plan, outputs named after the scene's file, honouring the umask, and clearing only their own."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from isaac_lang.cli import main
+from isaac.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
@@ -48,9 +48,9 @@ def scene_file(tmp_path, text=SWING, name="swing.isaac") -> Path:
 def test_version_and_python_dash_m():
     done = subprocess.run([str(ISAAC), "--version"], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0 and done.stdout.startswith("isaac ")
-    done = subprocess.run([sys.executable, "-m", "isaac_lang", "--help"], capture_output=True, text=True, timeout=60)
+    done = subprocess.run([sys.executable, "-m", "isaac", "--help"], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0 and "golden" in done.stdout and "run" in done.stdout
-    done = subprocess.run([sys.executable, "-m", "isaac_lang", "check", str(SCENES / "pendulum.isaac")],
+    done = subprocess.run([sys.executable, "-m", "isaac", "check", str(SCENES / "pendulum.isaac")],
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0 and "ok" in done.stdout
 
@@ -201,7 +201,7 @@ def test_a_missing_extra_is_found_with_the_plan_before_the_run(tmp_path):
     scene = scene_file(tmp_path, MESH.replace("assets/rock.obj", "rock.obj"), "rocks.isaac")
     (tmp_path / "rock.obj").write_bytes((SCENES / "assets" / "icosahedron.obj").read_bytes())
     program = ("import sys; sys.modules['fcl'] = None; sys.modules['matplotlib'] = None\n"
-               "from isaac_lang.cli import main; sys.exit(main(sys.argv[1:]))")
+               "from isaac.cli import main; sys.exit(main(sys.argv[1:]))")
     done = subprocess.run([sys.executable, "-c", program, "run", str(scene), "--out", str(tmp_path / "o")],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 2 and "Traceback" not in done.stderr
@@ -234,7 +234,7 @@ def test_outputs_are_named_after_the_file_and_honour_the_umask(tmp_path, capsys,
 
 
 def test_a_run_replaces_its_own_files_and_keeps_the_users(tmp_path, capsys):
-    from isaac_runtime.outputset import MANIFEST
+    from isaac_runtime.outputs.outputset import MANIFEST
 
     out = tmp_path / "o"
     assert run_cli(capsys, "run", SCENES / "bar.isaac", "--out", out, "--until", "0.3", "--plots")[0] == 0
@@ -259,7 +259,8 @@ def test_export_frames_that_select_nothing(tmp_path, capsys):
 
 
 def test_the_parser_knows_the_runtimes_default_limit():
-    from isaac_lang import cli
+    from isaac import cli
     from isaac_runtime import checks
 
-    assert cli._default_constraint_limit() == checks.DEFAULT_MAX_CONSTRAINT_ERROR
+    args = cli.build_parser().parse_args(["run", "scene.isaac"])
+    assert args.max_constraint_error == checks.DEFAULT_MAX_CONSTRAINT_ERROR

@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from isaac_lang import ir
-from isaac_lang.diagnostics import SceneError, SourceCache, warning_diagnostic
+from isaac_ir import ir
+from isaac_ir.diagnostics import SceneError, SourceCache, warning_diagnostic
 from isaac_lang.load import load_text
 
 from .test_diagnostics import only

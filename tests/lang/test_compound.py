@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from isaac_lang.cli import main
-from isaac_lang.diagnostics import SceneError
+from isaac.cli import main
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_text
-from isaac_lang import mass as M
+from isaac_ir import mass as M
 
 # the IR's mass properties are sums of a few products of the written numbers: exact to rounding
 TIGHT = 1e-12

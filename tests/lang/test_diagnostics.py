@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from isaac_lang import ir
-from isaac_lang.diagnostics import SceneError
+from isaac_ir import ir
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.expand import Limits
 from isaac_lang.load import load_scene, load_text
 
@@ -143,7 +143,7 @@ def test_the_diagnostic_prints_gcc_style():
         load_text(text, "s.isaac")
     printed = caught.value.format(None)
     assert printed.startswith("s.isaac:3:21: error: unknown body `bbo`")
-    from isaac_lang.diagnostics import SourceCache
+    from isaac_ir.diagnostics import SourceCache
 
     sources = SourceCache()
     sources.add("s.isaac", text)

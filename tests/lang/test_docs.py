@@ -8,9 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from isaac_lang import expr as E
-from isaac_lang import lower, lower_constraints, lower_expr, units
-from isaac_lang.diagnostics import SceneError
+from isaac_ir import expr as E
+from isaac_ir import units
+from isaac_lang import lower, lower_constraints, lower_expr
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_text
 from isaac_lang.syntax import KEYWORDS
 

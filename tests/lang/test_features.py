@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isaac_lang import expr as E
-from isaac_lang import ir
-from isaac_lang.diagnostics import SceneError
+from isaac_ir import expr as E
+from isaac_ir import ir
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_scene, load_text
 
 ROOT = Path(__file__).resolve().parents[2]

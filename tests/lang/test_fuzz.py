@@ -31,8 +31,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from isaac_lang import ir
-from isaac_lang.diagnostics import SceneError
+from isaac_ir import ir
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.expand import Limits
 from isaac_lang.load import load_text
 
@@ -242,7 +242,7 @@ def run_outcome(path: Path, text: str, out: Path, span: float = RUN_SPAN, budget
     if loaded is None:
         return "loads no scene"
     _warm_up()
-    from isaac_lang.options import budget_environment
+    from isaac.options import budget_environment
     from isaac_runtime.run import RunOptions, simulate, write_outputs
 
     scene = loaded.scene

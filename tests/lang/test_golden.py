@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from isaac_lang import ir
-from isaac_lang.golden.canonical import split, without_positions
-from isaac_lang.golden.compare import compare_ir
-from isaac_lang.golden.store import golden_folder
+from isaac_ir import ir
+from isaac.golden.canonical import split, without_positions
+from isaac.golden.compare import compare_ir
+from isaac.golden.store import golden_folder
 from isaac_lang.load import load_scene, load_text
 
 ROOT = Path(__file__).resolve().parents[2]

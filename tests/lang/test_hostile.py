@@ -11,8 +11,8 @@ import os
 
 import pytest
 
-from isaac_lang.cli import main
-from isaac_lang.files import Confinement
+from isaac.cli import main
+from isaac_ir.files import Confinement
 
 from . import hostile
 
@@ -120,7 +120,7 @@ def test_every_budget_refuses_at_its_setting_and_can_be_lifted(name, settings, l
 
 
 def test_every_budget_is_documented():
-    from isaac_runtime.budgets import DEFAULTS
+    from isaac_runtime.plan.budgets import DEFAULTS
 
     text = (hostile.Path(__file__).resolve().parents[2] / "docs" / "budgets.md").read_text(encoding="utf-8")
     for name in DEFAULTS:

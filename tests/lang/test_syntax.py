@@ -51,7 +51,7 @@ def test_without_hides_a_module_only_while_its_block_runs_and_only_in_its_thread
     # (in a fresh interpreter: colorsys and wave are imported by nothing else)
     code = """
 import sys
-from isaac_lang.imports import without
+from isaac_ir.imports import without
 import threading
 with without("colorsys", "wave", why="a test"):
     try:
@@ -77,7 +77,7 @@ def test_lazily_imports_a_module_whose_code_runs_at_its_first_use():
     # (in a fresh interpreter: colorsys is imported by nothing else)
     code = """
 import sys
-from isaac_lang.imports import lazily
+from isaac_ir.imports import lazily
 lazily("colorsys")
 lazily("no_such_module_here")
 assert "no_such_module_here" not in sys.modules

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from isaac_lang.diagnostics import SceneError
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_text
 from isaac_lang.typos import _unit_guess
 

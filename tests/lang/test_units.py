@@ -5,8 +5,8 @@ import math
 
 import pytest
 
-from isaac_lang import units as U
-from isaac_lang.diagnostics import SceneError
+from isaac_ir import units as U
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_text
 
 

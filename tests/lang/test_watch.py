@@ -32,7 +32,7 @@ LATENCY_BOUND = 1.0
 class Session:
     """An `isaac watch` process, its output read line by line in the background."""
 
-    def __init__(self, scene: Path, *args: str, cwd: Path | None = None, launch=("-m", "isaac_lang.cli")):
+    def __init__(self, scene: Path, *args: str, cwd: Path | None = None, launch=("-m", "isaac.cli")):
         """Watch scene from cwd (default: the scene's folder); launch: how python starts the command."""
         self.scene = scene
         self.lines: list = []
@@ -174,7 +174,7 @@ def test_a_complete_run_writes_the_outputs_and_a_bad_start_waits_for_a_fix(tmp_p
 
 
 def test_watch_of_a_missing_file_is_a_usage_error(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "isaac_lang.cli", "watch", str(tmp_path / "nope.isaac")],
+    result = subprocess.run([sys.executable, "-m", "isaac.cli", "watch", str(tmp_path / "nope.isaac")],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "no such scene file" in result.stderr
 
@@ -188,7 +188,7 @@ def test_watch_is_a_command(tmp_path):
 
 
 def test_the_tutorial_steps_load_and_its_mistake_is_the_one_it_shows():
-    from isaac_lang.diagnostics import SceneError
+    from isaac_ir.diagnostics import SceneError
     from isaac_lang.load import load_text
 
     text = (ROOT / "docs" / "tutorial.md").read_text()
@@ -224,7 +224,7 @@ def simulate(scene, options):
     return real_simulate(scene, options)
 
 load.load_scene, run.simulate = load_scene, simulate
-from isaac_lang.cli import main
+from isaac.cli import main
 sys.exit(main(sys.argv[1:]))
 """
 SHORT = PENDULUM.replace("time 0 s .. 10 s", "time 0 s .. 0.3 s")
@@ -327,7 +327,7 @@ def test_a_folder_made_again_a_scene_that_vanishes_and_a_binary_save(tmp_path, h
 
 @pytest.mark.parametrize("poll", [True, False])
 def test_a_failure_of_the_file_watch_itself_is_said_and_the_watch_goes_on(tmp_path, poll):
-    from isaac_lang.watch_files import FileWatcher
+    from isaac.watch_files import FileWatcher
 
     said, calls = [], []
 

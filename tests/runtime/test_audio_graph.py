@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isaac_lang.diagnostics import SceneError
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_text
 from isaac_runtime.audio import compile_audio
 from isaac_runtime.audio.iir import PoleFilter, one_pole, residuez

@@ -1,5 +1,5 @@
 """Modal sound (runtime/audio/modal.py, resonator.py, excitation.py) against closed forms and references:
-the free-free bar (SOUND.md's oracle), Leissa's plates, Lamb's sphere, the two-pole recursion, decay slopes."""
+the free-free bar (docs/design/sound.md's oracle), Leissa's plates, Lamb's sphere, the two-pole recursion, decay slopes."""
 from __future__ import annotations
 
 import math
@@ -13,7 +13,7 @@ from isaac_runtime.audio.excitation import contact_duration, half_sine, hertz_du
 from isaac_runtime.audio.resonator import ResonatorBank, two_pole_reference
 
 FS = 44100
-BAR = [577.0, 1592.0, 3120.0, 5158.0, 7705.0]  # SOUND.md: aluminium, L 0.30 m, h 10 mm
+BAR = [577.0, 1592.0, 3120.0, 5158.0, 7705.0]  # docs/design/sound.md: aluminium, L 0.30 m, h 10 mm
 
 BAR_SCENE = """
 scene bar {

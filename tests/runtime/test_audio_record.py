@@ -11,7 +11,7 @@ import pytest
 from isaac_lang.load import load_text
 from isaac_runtime.audio.record import StepColumn, StepTable, WindField, WindProbes
 from isaac_runtime.run import RunOptions, simulate
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 BREEZE = """scene breeze {
   time 0 s .. 0.3 s

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isaac_lang.diagnostics import SceneError
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_scene, load_text
 from isaac_runtime.audio import compile_audio
 

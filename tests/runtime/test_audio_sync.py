@@ -1,4 +1,4 @@
-"""Sample-accurate sound (SOUND.md, "How to test sound" 2): an event at time t starts at sample round(t fs).
+"""Sample-accurate sound (docs/design/sound.md#test-2, "How to test sound" 2): an event at time t starts at sample round(t fs).
 The difference method: render with and without event i; the first sample of the difference above 1e-3 of its
 peak is the event's onset. On synthetic events, and on the scenes' own events (bar, cradle)."""
 from __future__ import annotations
@@ -76,7 +76,7 @@ def test_bar_scene_rings_at_euler_bernoulli_frequencies(tmp_path):
     577, 1592, 3120 Hz, starting at the impact's sample."""
     import soundfile
 
-    from isaac_lang.cli import main
+    from isaac.cli import main
     from tests.runtime.test_audio_modal import spectrum_peak
 
     out = tmp_path / "bar"
@@ -130,7 +130,7 @@ def test_chimes_strikes_ring_on_time_and_faster_than_real_time():
 def test_a_scene_without_sounds_has_no_audio_stage_and_never_imports_soundfile():
     program = (
         "import sys\n"
-        "from isaac_lang.cli import main\n"
+        "from isaac.cli import main\n"
         f"assert main(['plan', {str(SCENES / 'pendulum.isaac')!r}]) == 0\n"
         "from isaac_lang.load import load_scene\n"
         "from isaac_runtime.run import RunOptions, simulate\n"

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 G = 9.81
 PLANS = {"dynamics": "solver dynamics { integrator rk4  step 1 ms }",

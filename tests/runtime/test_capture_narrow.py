@@ -11,7 +11,7 @@ from isaac_runtime.capture.narrow import bounds, closed_form, pair_contacts
 from isaac_runtime.collide import narrow as oracle
 from isaac_runtime.collide.shapes import BOX, CAPSULE, CYLINDER, MESH, PLANE, SPHERE, ShapeTable, boxes_of
 from isaac_runtime.core.model import Shapes
-from isaac_runtime.rotation import quat_to_matrix
+from isaac_runtime.core.rotation import quat_to_matrix
 
 MARGIN = 0.005
 
@@ -274,7 +274,7 @@ def test_bounds_agree_with_the_broad_phase():
 
 def test_a_scene_through_the_public_api():
     """The Shapes the model builds from a scene, against the table the plan holds."""
-    from isaac_runtime.simulation import Simulation
+    from isaac.api import Simulation
 
     sim = Simulation.from_text("""scene s {
       body floor plane { }

@@ -62,7 +62,7 @@ BOB = """scene s {
 
 def unsatisfiable(lines: str, solver: str = "dynamics", limit=checks.DEFAULT_MAX_CONSTRAINT_ERROR, turned=None):
     from isaac_runtime.plan import PlanOptions
-    from isaac_runtime.simulation import Simulation
+    from isaac.api import Simulation
 
     text = BOB % lines
     if turned:

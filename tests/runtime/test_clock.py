@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import soundfile
 
-from isaac_lang.cli import main
+from isaac.cli import main
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "clock.isaac"
 RUN_SECONDS = 12.0

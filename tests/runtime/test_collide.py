@@ -19,8 +19,8 @@ from isaac_runtime.collide.pairs import BroadPhase
 from isaac_runtime.collide.response import Bodies, Contacts, Joints, Response
 from isaac_runtime.collide.shapes import BOX, CAPSULE, CYLINDER, PLANE, SPHERE, ShapeTable, bounding_boxes
 from isaac_runtime.plan import compile_plan
-from isaac_runtime.rotation import quat_to_matrix
-from isaac_runtime.simulation import Simulation
+from isaac_runtime.core.rotation import quat_to_matrix
+from isaac.api import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 ASSETS = SCENES / "assets"
@@ -85,7 +85,7 @@ def test_a_pair_joined_later_collides_until_the_joint_is_on():
 
 
 def test_pendulum_run_imports_neither_collide_nor_fcl(tmp_path):
-    code = ("import sys; from isaac_lang.cli import main; rc = main(['run', sys.argv[1], '--out', sys.argv[2], "
+    code = ("import sys; from isaac.cli import main; rc = main(['run', sys.argv[1], '--out', sys.argv[2], "
             "'--until', '0.05']); assert 'fcl' not in sys.modules and 'isaac_runtime.collide' not in sys.modules; "
             "sys.exit(rc)")
     done = subprocess.run([sys.executable, "-c", code, str(SCENES / "pendulum.isaac"), str(tmp_path)],
@@ -96,7 +96,7 @@ def test_pendulum_run_imports_neither_collide_nor_fcl(tmp_path):
 def test_contact_scenes_never_import_scipy_linalg(tmp_path):
     # scipy.linalg costs 0.1 s to import: the impulse solves use numpy's own LAPACK, so neither a box that slides
     # from rest nor a ball that bounces (an impact, and its solve) imports it
-    code = ("import sys; from isaac_lang.cli import main; rc = main(['run', sys.argv[1], '--out', sys.argv[2], "
+    code = ("import sys; from isaac.cli import main; rc = main(['run', sys.argv[1], '--out', sys.argv[2], "
             "'--until', sys.argv[3]]); print('scipy.linalg' in sys.modules); sys.exit(rc)")
     seen = {}
     for scene, until in (("slide", "1.5"), ("bounce", "1.0")):
@@ -109,7 +109,7 @@ def test_contact_scenes_never_import_scipy_linalg(tmp_path):
 
 def test_isaac_plan_says_a_scene_whose_pairs_are_all_excluded_has_no_collision_stage():
     # the windmill's two boxes collide, but its blade is joined to its tower: the stage is off, fcl never loaded
-    code = ("import sys; from isaac_lang.cli import main; rc = main(['plan', sys.argv[1]]); "
+    code = ("import sys; from isaac.cli import main; rc = main(['plan', sys.argv[1]]); "
             "assert 'fcl' not in sys.modules; sys.exit(rc)")
     done = subprocess.run([sys.executable, "-c", code, str(SCENES / "windmill.isaac")], capture_output=True,
                           text=True)
@@ -122,7 +122,7 @@ def test_fcl_is_imported_only_for_pairs_without_a_closed_form():
 import sys
 from isaac_lang.load import load_text
 from isaac_runtime.plan import compile_plan
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 mesh = 'body rock mesh { file "%s"  mass 1 kg  inertia (1e-3, 1e-3, 1e-3) kg*m2  at (0, 0.2, 0) }'
 on_plane = 'scene a { body floor plane { } ' + mesh + ' }'
 Simulation(compile_plan(load_text(on_plane).scene)).advance_to(0.01)
@@ -409,7 +409,7 @@ def test_resting_shapes_get_a_full_manifold():
 def test_lcp_solution_satisfies_signorini_and_coulomb():
     """Contact problems of random bodies pressed onto a floor and onto each other, at random points, with
     random velocities and friction: the answer meets every condition of lcp.py."""
-    from isaac_runtime import linsolve
+    from isaac_runtime.collide.mass_matrix import assemble_dense
     from isaac_runtime.collide.response import contact_rows, row_velocity, tangent_basis
 
     rng = np.random.default_rng(5)
@@ -438,7 +438,7 @@ def test_lcp_solution_satisfies_signorini_and_coulomb():
         sub = Contacts(a[owner], b[owner], point[owner], normal[owner], *(np.zeros(len(owner)) for _ in range(4)))
         J = contact_rows(sub, x, directions)
         slots = np.stack([a[owner], np.where(b[owner] == n, -1, b[owner])], axis=1)
-        W = linsolve.assemble_dense(J, slots, inv_mass, inv_inertia)
+        W = assemble_dense(J, slots, inv_mass, inv_inertia)
         v, w = rng.normal(size=(n + 1, 3)), rng.normal(size=(n + 1, 3))
         v[n] = w[n] = 0.0
         u0 = row_velocity(J, slots, v, w)
@@ -484,7 +484,7 @@ def test_pgs_sweeps_agree_in_lists_and_in_arrays(monkeypatch):
 
 
 def test_single_impact_matches_the_textbook_impulse():
-    """PHYSICS.md 5: j = -(1 + e) vrel / (1/ma + 1/mb + n.((Ia^-1 (ra x n)) x ra) + n.((Ib^-1 (rb x n)) x rb))."""
+    """docs/design/physics.md section 5: j = -(1 + e) vrel / (1/ma + 1/mb + n.((Ia^-1 (ra x n)) x ra) + n.((Ib^-1 (rb x n)) x rb))."""
     rng = np.random.default_rng(2)
     n = np.array([0.0, 1.0, 0.0])
     x = np.array([[0.1, 0.5, 0.0], [-0.2, -0.4, 0.1]])

@@ -11,7 +11,7 @@ import pytest
 
 from isaac_lang.load import load_text
 from isaac_runtime.plan import compile_plan
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 PLANS = {"dynamics": "solver dynamics { integrator rk4  step 1 ms }",
          "procedural": "solver procedural { step 5 ms  substeps 10 }"}

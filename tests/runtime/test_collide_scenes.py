@@ -1,5 +1,5 @@
-"""The collision scenes against their answers (SCENES.md): cradle, scrape, bar (motion), bounce, stack; resting
-contact, tunnelling, meshes, and the procedural plan. Runs are cut short where the answer is already there;
+"""The collision scenes against their answers (in their headers): cradle, scrape, bar (motion), bounce, stack;
+resting contact, tunnelling, meshes, and the procedural plan. Runs are cut short where the answer is already there;
 the full-length runs are marked slow."""
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from isaac_lang.load import load_scene
-from isaac_runtime.rotation import quat_rotate
+from isaac_runtime.core.rotation import quat_rotate
 from isaac_runtime.run import RunOptions, simulate
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 ASSETS = SCENES / "assets"
@@ -148,7 +148,7 @@ def test_bounce_impacts_are_events_at_their_times():
 
 
 def test_events_json_lists_every_impact(tmp_path):
-    from isaac_lang.cli import main
+    from isaac.cli import main
 
     assert main(["run", str(SCENES / "bounce.isaac"), "--out", str(tmp_path), "--until", "1.2"]) == 0
     events = json.loads((tmp_path / "events.json").read_text())

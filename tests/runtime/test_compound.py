@@ -11,7 +11,7 @@ import pytest
 from isaac_lang.load import load_text
 from isaac_runtime.audio import compile_audio
 from isaac_runtime.collide.collider import TOI_LOCATE
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 G = 9.81
 E = 0.5  # restitution of the scenes below

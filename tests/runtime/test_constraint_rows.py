@@ -20,7 +20,7 @@ from isaac_runtime.constraints.layout import (
     PointToPoint,
 )
 from isaac_runtime.constraints.plan import capture_element_references, row_count
-from isaac_runtime.rotation import (
+from isaac_runtime.core.rotation import (
     quat_from_axis_angle,
     quat_integrate,
     quat_multiply,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isaac_lang import expr as E
+from isaac_ir import expr as E
 from isaac_lang.load import load_text
 from isaac_runtime.core import data as D
 from isaac_runtime.core.record import Frames
@@ -18,8 +18,8 @@ from isaac_runtime.core.structure import build_active
 from isaac_runtime.dynamics import integrate as I
 from isaac_runtime.dynamics.accelerations import evaluate_accelerations
 from isaac_runtime.plan import PlanOptions, compile_plan
-from isaac_runtime.rotation import quat_derivative_reference, quat_normalize, quat_to_matrix
-from isaac_runtime.simulation import Simulation
+from isaac_runtime.core.rotation import quat_derivative_reference, quat_normalize, quat_to_matrix
+from isaac.api import Simulation
 
 from .core_helpers import rows_at
 
@@ -243,7 +243,7 @@ def _textbook(name, y, h, slope_at):
     speed = np.linalg.norm(w, axis=1, keepdims=True)
     half = 0.5 * h * speed
     turn = np.concatenate((np.cos(half), np.sin(half) * w / np.where(speed > 0, speed, 1.0)), axis=1)
-    from isaac_runtime.rotation import quat_multiply
+    from isaac_runtime.core.rotation import quat_multiply
     out[:, 3:7] = quat_normalize(quat_multiply(turn, out[:, 3:7]))
     return out
 

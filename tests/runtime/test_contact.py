@@ -12,7 +12,7 @@ import pytest
 
 from isaac_lang.load import load_text
 from isaac_runtime.plan import compile_plan
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 G = 9.81
@@ -161,7 +161,7 @@ def test_a_spin_given_as_a_frequency_is_an_angular_velocity():
 
 
 def test_a_spin_in_hertz_is_refused_with_the_factor_in_the_hint():
-    from isaac_lang.diagnostics import SceneError
+    from isaac_ir.diagnostics import SceneError
 
     with pytest.raises(SceneError) as caught:
         load_text(SPIN % "2 Hz")

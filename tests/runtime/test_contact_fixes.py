@@ -16,8 +16,8 @@ import math
 import numpy as np
 import pytest
 
-from isaac_lang.cli import main
-from isaac_runtime.simulation import Simulation
+from isaac.cli import main
+from isaac.api import Simulation
 
 G = 9.81
 PLANS = ["dynamics", "procedural"]

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from isaac_lang.load import load_text
-from isaac_runtime.rotation import quat_rotate, quat_to_matrix
+from isaac_runtime.core.rotation import quat_rotate, quat_to_matrix
 from isaac_runtime.run import RunOptions, simulate
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 G = 9.81

@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isaac_lang import ir
-from isaac_lang.diagnostics import SceneError
+from isaac_ir import ir
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_scene, load_text
 from isaac_runtime.dynamics.integrate import MAX_SUBSTEPS
 from isaac_runtime.run import RunOptions, simulate
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 

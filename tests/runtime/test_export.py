@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isaac_lang.cli import main
+from isaac.cli import main
 from isaac_lang.load import load_scene, load_text
 from isaac_runtime.export import geometry
 from isaac_runtime.export.gltf import gltf_document, write_gltf

@@ -11,7 +11,7 @@ import pytest
 import isaac_runtime.core.structure as structure
 from isaac_runtime.core.data import COUNTER_REUSED
 from isaac_runtime.dynamics import DynamicsStepper
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isaac_runtime.outputset import LEFTOVER, MANIFEST, read_manifest
+from isaac_runtime.outputs.outputset import LEFTOVER, MANIFEST, read_manifest
 
 pytestmark = pytest.mark.skipif(os.name == "nt", reason="POSIX signals")
 
@@ -35,7 +35,7 @@ NOTE = "the user's own notes"
 
 def command(scene: str, value: float, out: Path) -> list:
     file, parameter, unit, extra = RUNS[scene]
-    return [sys.executable, "-m", "isaac_lang.cli", "run", str(SCENES / file), "--out", str(out),
+    return [sys.executable, "-m", "isaac.cli", "run", str(SCENES / file), "--out", str(out),
             "--set", f"{parameter}={value:g}{unit}", "-q", *extra]
 
 
@@ -158,7 +158,7 @@ EXPORTS = {"rib 0:40": ("--format", "rib", "--frames", "0:40"), "rib 0:150": ("-
 
 
 def export_command(kind: str, out: Path) -> list:
-    return [sys.executable, "-m", "isaac_lang.cli", "export", str(SCENES / "pendulum.isaac"), "--out", str(out),
+    return [sys.executable, "-m", "isaac.cli", "export", str(SCENES / "pendulum.isaac"), "--out", str(out),
             *EXPORTS[kind], "-q"]
 
 
@@ -173,7 +173,7 @@ def kill_exports(tmp_path: Path, kills: int, seed: int) -> dict:
     rng = random.Random(seed)
     out = tmp_path / "out" / "shared"
     out.parent.mkdir()
-    assert subprocess.run([sys.executable, "-m", "isaac_lang.cli", "run", str(SCENES / "pendulum.isaac"), "--out",
+    assert subprocess.run([sys.executable, "-m", "isaac.cli", "run", str(SCENES / "pendulum.isaac"), "--out",
                            str(out), "--until", "2", "-q"], timeout=300).returncode == 0
     (out / "notes.txt").write_text(NOTE)
     files, seconds = {}, {}
@@ -217,7 +217,7 @@ def test_thirty_exports_killed_at_random_leave_one_whole_set(tmp_path):
 
 # -- a sweep's kept outputs and its table ---------------------------------------------------------------------------
 
-# what a sweep's client does with each finished variant and at its end (runtime/sweep/driver.py), without the Dask
+# what a sweep's client does with each finished variant and at its end (isaac/sweep/driver.py), without the Dask
 # cluster: every file of a variant starts with the generation that wrote it
 SWEEP_WRITER = textwrap.dedent("""
     import sys
@@ -226,8 +226,8 @@ SWEEP_WRITER = textwrap.dedent("""
     import numpy as np
     import pandas as pd
 
-    from isaac_runtime.sweep.table import store_outputs, write_table
-    from isaac_runtime.sweep.task import Task
+    from isaac.sweep.table import store_outputs, write_table
+    from isaac.sweep.task import Task
 
     folder, generation = Path(sys.argv[1]), int(sys.argv[2])
     rng = np.random.default_rng(generation)

@@ -1,13 +1,12 @@
-"""runtime/linsolve.py: dense assembly against a loop-built J M^-1 J^T; the dense pattern, sparse and tree against
+"""benchmarks/linsolve.py: dense assembly against a loop-built J M^-1 J^T; the dense pattern, sparse and tree against
 dense; singular systems stay finite and say so."""
 import numpy as np
 import pytest
 
-from isaac_runtime.linsolve import (
+from benchmarks.linsolve import (
     DensePattern,
     SolveInfo,
     SparsePattern,
-    TreeSolver,
     apply_inverse_mass,
     assemble_dense,
     choose_solver,
@@ -15,6 +14,7 @@ from isaac_runtime.linsolve import (
     solve_dense,
     solve_sparse,
 )
+from benchmarks.linsolve_tree import TreeSolver
 
 
 def skew(r):

@@ -63,7 +63,7 @@ def scene_with_breath(folder: Path, breath: Path) -> Path:
 
 
 def isaac(*args: str, env: dict | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "isaac_lang", *args], capture_output=True, text=True, cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "isaac", *args], capture_output=True, text=True, cwd=ROOT,
                           env=env, timeout=timeout)
 
 
@@ -71,7 +71,7 @@ class LiveRun:
     """`isaac live ARGS --port 0 --no-browser` in a process; its address read from what it says on stderr."""
 
     def __init__(self, args: list, env: dict | None = None, startup: float = 240.0):
-        command = [sys.executable, "-m", "isaac_lang", "live", *args, "--port", "0", "--no-browser"]
+        command = [sys.executable, "-m", "isaac", "live", *args, "--port", "0", "--no-browser"]
         self.process = subprocess.Popen(command, cwd=ROOT, env=env, stdout=subprocess.PIPE,
                                         stderr=subprocess.PIPE, text=True)
         self.lines: list = []

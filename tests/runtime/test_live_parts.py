@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from isaac_lang.live_command import sliders
+from isaac.live_command import sliders
 from isaac_runtime.live.clock import CATCH_UP, SLOW_WINDOW, Pacer
 from isaac_runtime.live.server import BUFFER, Hub, LiveServer
 

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from isaac_lang.cli import main
+from isaac.cli import main
 from isaac_runtime.outputs import OWNED_FILES, OWNED_PLOTS
-from isaac_runtime.outputset import MANIFEST
+from isaac_runtime.outputs.outputset import MANIFEST
 
 ROOT = Path(__file__).resolve().parents[2]
 DOC = (ROOT / "docs" / "outputs.md").read_text(encoding="utf-8")
@@ -42,9 +42,9 @@ def test_every_output_file_and_field_is_documented(tmp_path, capsys):
 
 
 def test_every_field_and_state_of_the_manifest_is_documented(tmp_path, capsys):
-    from isaac_runtime.outputset import read_manifest
-    from isaac_runtime.sweep.table import store_outputs
-    from isaac_runtime.sweep.task import Task
+    from isaac_runtime.outputs.outputset import read_manifest
+    from isaac.sweep.table import store_outputs
+    from isaac.sweep.task import Task
 
     out = tmp_path / "out"
     assert main(["run", str(ROOT / "scenes" / "pendulum.isaac"), "--out", str(out), "--until", "0.1"]) == 0

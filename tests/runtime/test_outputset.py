@@ -1,4 +1,4 @@
-"""runtime/outputset.py: a run's files replace the previous run's as a whole; the user's files stay; what killed
+"""runtime/outputs/outputset.py: a run's files replace the previous run's as a whole; the user's files stay; what killed
 runs leave beside the folder is reclaimed; a folder that is not isaac's is refused. And strict JSON outputs."""
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isaac_lang.cli import main
-from isaac_lang.diagnostics import SceneError
-from isaac_runtime import outputset
+from isaac.cli import main
+from isaac_ir.diagnostics import SceneError
+from isaac_runtime.outputs import outputset
 from isaac_runtime.outputs import finite_or_null, write_json
-from isaac_runtime.outputset import MANIFEST, OutputSet, read_manifest, reclaim
+from isaac_runtime.outputs.outputset import MANIFEST, OutputSet, read_manifest, reclaim
 
 from .test_run import BLOWS_UP
 
@@ -222,8 +222,8 @@ def test_a_blow_up_writes_a_strict_report_with_its_error(tmp_path, capsys, monke
 
 
 def test_sweep_variants_are_stored_whole(tmp_path, swap_mode):
-    from isaac_runtime.sweep.table import store_outputs
-    from isaac_runtime.sweep.task import Task
+    from isaac.sweep.table import store_outputs
+    from isaac.sweep.task import Task
 
     task = Task(index=0, id="v0", values={"x": "1"})
     target = Path(store_outputs(tmp_path, task, {"report.json": b"{}", "trajectory.npz": b"old"}))

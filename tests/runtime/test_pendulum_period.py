@@ -10,7 +10,7 @@ import pytest
 from scipy.special import ellipk
 
 from isaac_runtime.outputs import Recorder
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "pendulum.isaac"
 G, LENGTH, RADIUS = 9.81, 1.0, 0.05

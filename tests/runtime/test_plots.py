@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isaac_lang.cli import main
+from isaac.cli import main
 
 pytest.importorskip("matplotlib", reason="plots need the `plots` extra (matplotlib)")
 
-from isaac_runtime.plots import write_plots  # noqa: E402
+from isaac_runtime.outputs.plots import write_plots  # noqa: E402
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 

@@ -11,8 +11,8 @@ import pytest
 from scipy.special import ellipk
 
 from isaac_runtime.procedural.project import curve
-from isaac_runtime.rotation import quat_rotate, quat_to_matrix
-from isaac_runtime.simulation import Simulation
+from isaac_runtime.core.rotation import quat_rotate, quat_to_matrix
+from isaac.api import Simulation
 
 G = 9.81
 METHODS = ("direct", "gauss_seidel")

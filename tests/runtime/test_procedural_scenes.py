@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from scipy.special import ellipk
 
-from isaac_lang.cli import main
+from isaac.cli import main
 from isaac_lang.load import load_scene, load_text
 from isaac_runtime.plan import PlanOptions, compile_plan
-from isaac_runtime.rotation import quat_to_matrix
+from isaac_runtime.core.rotation import quat_to_matrix
 from isaac_runtime.run import RunOptions, simulate
 
 from .test_scenes import SCENES, assembly_errors, body_points, measured_period, run
@@ -167,7 +167,7 @@ def test_a_hard_driven_kinematic_body_moves_every_substep(substeps):
     every substep's end before the projection, so the joint holds once the start's velocity mismatch (the hand
     starts at 9.4 m/s, the bob at rest: an assembly curve) has died out. Gliding the hand at its step-start
     velocity through the step left it up to a h^2 / 2 = 9 cm off its path: a 7.7 cm joint error."""
-    from isaac_runtime.simulation import Simulation
+    from isaac.api import Simulation
 
     text = f"""
 scene shaken {{

@@ -13,7 +13,7 @@ from isaac_runtime.core.data import COUNTER_RESTING
 from isaac_runtime.core.rest import REST_ACCELERATION, REST_SPEED, REST_STEPS
 from isaac_runtime.dynamics import DynamicsStepper
 from isaac_runtime.procedural import ProceduralStepper
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 G = 9.81

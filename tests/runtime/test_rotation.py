@@ -1,9 +1,9 @@
-"""runtime/rotation.py: the fast kernels against their plain forms (np.cross, the per-entry matrix, the Hamilton
+"""runtime/core/rotation.py: the fast kernels against their plain forms (np.cross, the per-entry matrix, the Hamilton
 product, np.linalg.norm) on stacks of every shape the runtime uses, including one past CROSS_MATMUL_MAX."""
 import numpy as np
 import pytest
 
-from isaac_runtime.rotation import (
+from isaac_runtime.core.rotation import (
     CROSS_MATMUL_MAX,
     cross,
     quat_derivative,

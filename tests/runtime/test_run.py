@@ -1,4 +1,4 @@
-"""`isaac run` and `isaac plan` against the output contract of ARCHITECTURE.md, and the embedding API."""
+"""`isaac run` and `isaac plan` against the output contract of docs/design/architecture.md, and the embedding API."""
 from __future__ import annotations
 
 import json
@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isaac_lang.cli import main
-from isaac_runtime.outputset import MANIFEST
-from isaac_runtime.simulation import Simulation
+from isaac.cli import main
+from isaac_runtime.outputs.outputset import MANIFEST
+from isaac.api import Simulation
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 
@@ -83,7 +83,7 @@ def test_plan_lists_stages(capsys):
 def test_readme_command_runs_the_pendulum_without_sound_or_meshes(tmp_path):
     # the command a newcomer runs; a scene without sound never imports soundfile, without meshes never fcl, and
     # a 3-row system (a dense solve) never scipy.sparse
-    code = ("import sys; from isaac_lang.cli import main; rc = main(['run', sys.argv[1], '--out', sys.argv[2], "
+    code = ("import sys; from isaac.cli import main; rc = main(['run', sys.argv[1], '--out', sys.argv[2], "
             "'--until', '0.1']); assert 'soundfile' not in sys.modules and 'fcl' not in sys.modules; "
             "assert 'scipy.sparse' not in sys.modules, 'scipy.sparse imported'; sys.exit(rc)")
     done = subprocess.run([sys.executable, "-c", code, str(SCENES / "pendulum.isaac"), str(tmp_path)],
@@ -158,7 +158,7 @@ how, out = sys.argv[1], sys.argv[2]
 if how == "refresh":
     from numba.core.registry import cpu_target
     cpu_target.target_context.refresh()
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 for scene in sys.argv[3:]:
     sim = Simulation.from_file(scene, until=0.2)
     sim.advance_to(0.2)
@@ -215,7 +215,7 @@ real_parse = ll.parse_bitcode
 ll.parse_bitcode = lambda data: parsed.append(len(data)) or real_parse(data)
 from isaac_runtime.core import jit
 from isaac_runtime.dynamics.integrate import run
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 sim = Simulation.from_file(sys.argv[1], until=0.2)
 sim.advance_to(0.2)
 np.save(sys.argv[2], sim.state.y)

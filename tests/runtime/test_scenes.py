@@ -1,4 +1,4 @@
-"""Each example scene against its exact answer (SCENES.md), with the scene's own default settings."""
+"""Each example scene against its exact answer (stated in its header comment), with its own default settings."""
 from __future__ import annotations
 
 import functools
@@ -10,7 +10,7 @@ import pytest
 from scipy.special import ellipk
 
 from isaac_lang.load import load_scene
-from isaac_runtime.rotation import quat_rotate, quat_to_matrix
+from isaac_runtime.core.rotation import quat_rotate, quat_to_matrix
 from isaac_runtime.run import RunOptions, simulate
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"

@@ -11,7 +11,7 @@ import types
 import numpy as np
 import pytest
 
-from isaac_lang.diagnostics import SceneError
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_text
 from isaac_runtime import signals
 from isaac_runtime.plan import compile_plan
@@ -100,7 +100,7 @@ def test_microphone_without_a_device_says_so(monkeypatch):
 
 
 def test_isaac_run_mic_without_sounddevice_is_exit_2(monkeypatch, capsys):
-    from isaac_lang.cli import main
+    from isaac.cli import main
 
     monkeypatch.setitem(sys.modules, "sounddevice", None)
     code = main(["run", str(SCENES / "mobile.isaac"), "--mic", "--until", "0.01", "--quiet"])

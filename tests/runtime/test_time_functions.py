@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from isaac_lang.diagnostics import SceneError
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_text
-from isaac_runtime.rotation import quat_to_matrix
-from isaac_runtime.simulation import Simulation
+from isaac_runtime.core.rotation import quat_to_matrix
+from isaac.api import Simulation
 
 MOVING = """scene m {
   time 0 s .. 5 s

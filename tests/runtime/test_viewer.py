@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isaac_lang.cli import main
+from isaac.cli import main
 from isaac_lang.load import load_scene, load_text
 from isaac_runtime.run import RunOptions, simulate
 from isaac_runtime.viewer import render_html, viewer_data, write_viewer

@@ -15,7 +15,7 @@ import pytest
 from isaac_lang.load import load_scene, load_text
 from isaac_runtime import signals
 from isaac_runtime.plan import compile_plan
-from isaac_runtime.rotation import quat_from_axis_angle, quat_rotate, quat_to_matrix
+from isaac_runtime.core.rotation import quat_from_axis_angle, quat_rotate, quat_to_matrix
 from isaac_runtime.run import RunOptions, simulate
 from isaac_runtime.wind import wind_intensity, wind_speed_at
 from isaac_runtime.wind import drag as D
@@ -144,7 +144,7 @@ SHAPES = {
 
 @pytest.mark.parametrize("name", SHAPES)
 def test_projected_area_is_the_shadow_of_the_shape(name):
-    from isaac_lang.ir import Shape
+    from isaac_ir.ir import Shape
 
     shape = Shape(**SHAPES[name])
     aero = D.shape_aero(shape, 1.0, np.eye(3))
@@ -159,7 +159,7 @@ def test_projected_area_is_the_shadow_of_the_shape(name):
 
 
 def test_drag_kernel_matches_its_reference():
-    from isaac_lang.ir import Shape
+    from isaac_ir.ir import Shape
 
     rng = np.random.default_rng(5)
     shapes = [Shape(**s) for s in SHAPES.values()]
@@ -179,7 +179,7 @@ def test_drag_kernel_matches_its_reference():
 def test_drag_of_bodies_the_wind_cannot_turn_is_the_general_kernel_to_the_bit():
     """A sphere, or any body given an `area` and no lever arm: the kernel skips n, A(n) and the torque; the
     force is the general formula's to the last bit, the torque 0."""
-    from isaac_lang.ir import Shape
+    from isaac_ir.ir import Shape
 
     rng = np.random.default_rng(7)
     aeros = [D.shape_aero(Shape(type="sphere", radius=r), 0.05, None, area=a) for r, a in ((0.02, None), (0.03, 0.012))]
@@ -205,7 +205,7 @@ def test_row_cross_product():
 
 
 def test_user_area_replaces_the_shape_area():
-    from isaac_lang.ir import Shape
+    from isaac_ir.ir import Shape
 
     aero = D.shape_aero(Shape(type="box", size=(1.0, 1.0, 0.01)), 1.0, np.eye(3), area=0.25)
     bodies = D.stack_bodies([0], [aero], [1.0], [1.0], np.eye(3)[None])
@@ -274,7 +274,7 @@ SPEEDS = [
 
 @pytest.mark.parametrize("speed", SPEEDS)
 def test_compiled_speed_is_the_evaluator_to_the_bit(speed):
-    from isaac_lang import expr as E
+    from isaac_ir import expr as E
 
     from isaac_runtime.wind.speed import SpeedOfTime, compile_scalar
 
@@ -288,7 +288,7 @@ def test_compiled_speed_is_the_evaluator_to_the_bit(speed):
 
 
 def test_keyframed_speed_falls_back_to_the_evaluator():
-    from isaac_lang import expr as E
+    from isaac_ir import expr as E
 
     from isaac_runtime.wind.speed import compile_scalar
 
@@ -434,7 +434,7 @@ def test_turbulence_is_reproducible_and_scales_with_the_wind():
 # ---- the plan --------------------------------------------------------------------------------------------------
 
 def test_a_scene_without_wind_has_no_wind_stage(capsys):
-    from isaac_lang.cli import main
+    from isaac.cli import main
 
     plan = compile_plan(load_scene(SCENES / "pendulum.isaac").scene)
     assert plan.forces.wind is None and plan.stages()["wind"] is False

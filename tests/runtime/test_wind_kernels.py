@@ -11,7 +11,7 @@ import pytest
 from isaac_lang.load import load_scene, load_text
 from isaac_runtime import signals
 from isaac_runtime.plan import PlanOptions, compile_plan
-from isaac_runtime.rotation import quat_to_matrix
+from isaac_runtime.core.rotation import quat_to_matrix
 from isaac_runtime.wind import kernels as K
 from isaac_runtime.wind import turbulence as T
 from isaac_runtime.wind.fields import compile_fields

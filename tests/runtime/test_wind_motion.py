@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from isaac_lang.diagnostics import SceneError
+from isaac_ir.diagnostics import SceneError
 from isaac_lang.load import load_text
-from isaac_runtime.simulation import Simulation
+from isaac.api import Simulation
 
 RADIUS, MASS, CD, RHO = 0.05, 0.01, 0.47, 1.2
 # F = 1/2 rho Cd A |u - v| (u - v), A = pi r^2: dv/dt = K |u - v| (u - v)

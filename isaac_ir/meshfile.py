@@ -1,0 +1,148 @@
+"""Reading the mesh files a scene names (OBJ, STL): what `isaac check` validates, what lowering integrates
+(mass.mesh_integrals) and what the collision stage collides (isaac_runtime.collide.meshes) come from this one
+reader.
+
+    vertices (V,3), faces (F,3) = read_mesh(path)
+
+OBJ: `v` and `f` lines (polygons fanned into triangles; `v/vt/vn` and negative indices allowed). STL: ASCII or
+binary, coincident corners merged (to 1e-12) so that the triangles share vertices. The file is read through
+isaac_ir.files (a regular file of bounded size: never a FIFO or a device) and what it holds is validated: at
+least one triangle, finite coordinates, every index naming a vertex, and a solid that is not flat.
+"""
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+
+import numpy as np
+
+from isaac_ir.files import MAX_ASSET_BYTES, FileRefused, read_bounded
+
+# the most vertices or triangles a mesh may have (a 64 MiB OBJ holds about 2.5 million vertex lines)
+MAX_MESH_ITEMS = 2_000_000
+# a mesh is flat when its thinnest extent (the smallest singular value of its centred vertices) is below this
+# fraction of its widest: 1e-9 of a metre-sized rock is a nanometre
+FLAT_RATIO = 1e-9
+MESH_HINT = "a mesh is an OBJ or STL file of triangles around a solid"
+
+
+class MeshFileError(ValueError):
+    """A mesh file of an unknown format, one that cannot be read as one, or one that holds no usable solid."""
+
+
+def read_mesh(path) -> tuple:
+    """(vertices (V,3), faces (F,3) int) of an OBJ or STL file, validated (MeshFileError when not usable)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".obj", ".stl"):
+        raise MeshFileError(f"`{path.name}`: unknown mesh format `{suffix}` (use .obj or .stl)")
+    try:
+        data = read_bounded(path, MAX_ASSET_BYTES["mesh"])
+    except FileRefused as error:
+        raise MeshFileError(error.message) from None
+    vertices, faces = read_obj(data.decode("utf-8", errors="replace")) if suffix == ".obj" else read_stl(data)
+    validate(vertices, faces)
+    return vertices, faces
+
+
+def mesh_problem(name: str, folder, confinement) -> tuple | None:
+    """(message, hint) saying why a scene may not use the mesh file it names (relative to its folder, or
+    absolute), or None. A missing file is None too: the assets stage (isaac_lang/assets.py) reports it with the
+    other files the scene names, and a load that does not read assets does not miss it. A file outside the
+    folders the scene may read from is refused before anything opens it."""
+    path = Path(name) if Path(name).is_absolute() else Path(folder or ".") / name
+    try:
+        real = confinement.allowed(path) if confinement is not None else path
+        if not os.path.lexists(real):
+            return None
+        info = os.stat(real)
+        _checked(str(real), (info.st_mtime_ns, info.st_size, info.st_ino))
+    except FileRefused as error:
+        return error.message, error.hint
+    except (OSError, MeshFileError) as error:
+        return (getattr(error, "strerror", None) or str(error)), MESH_HINT
+    return None
+
+
+@functools.lru_cache(maxsize=64)
+def _checked(path: str, stamp: tuple) -> None:
+    """read_mesh for its errors only, once per version of the file (a loop of 30 teeth reads one)."""
+    read_mesh(path)
+
+
+def validate(vertices: np.ndarray, faces: np.ndarray) -> None:
+    """MeshFileError saying what makes the mesh unusable: none of it, non-finite, bad indices, too large, flat."""
+    if len(vertices) == 0 or len(faces) == 0:
+        raise MeshFileError(f"it holds {len(vertices)} vertices and {len(faces)} triangles: no solid "
+                            "(an OBJ file needs `v x y z` and `f i j k` lines)")
+    if len(vertices) > MAX_MESH_ITEMS or len(faces) > MAX_MESH_ITEMS:
+        raise MeshFileError(f"it holds {len(vertices)} vertices and {len(faces)} triangles, more than the "
+                            f"{MAX_MESH_ITEMS} a mesh may have (simplify it)")
+    if not np.all(np.isfinite(vertices)):
+        row = int(np.flatnonzero(~np.all(np.isfinite(vertices), axis=1))[0])
+        raise MeshFileError(f"vertex {row + 1} is not a finite point: ({', '.join(f'{c:g}' for c in vertices[row])})")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        bad = faces[(faces < 0) | (faces >= len(vertices))][0]
+        raise MeshFileError(f"a triangle names vertex {_written(int(bad), len(vertices))}, and the file has "
+                            f"{len(vertices)} (OBJ indices count from 1)")
+    used = vertices[np.unique(faces)]
+    # thickness along each principal direction: the singular values of the centred vertices
+    spread = np.linalg.svd(used - used.mean(axis=0), compute_uv=False)
+    if not spread[0] > 0:
+        raise MeshFileError("its triangles all sit on one point")
+    if len(spread) < 3 or spread[2] <= FLAT_RATIO * spread[0]:
+        raise MeshFileError("it is flat: its triangles all lie in one plane (or on one line), so it bounds no solid")
+
+
+def _written(index: int, count: int) -> str:
+    """An index as the file wrote it (1-based; 0 in an OBJ comes out as `count`)."""
+    return "0" if index == count else str(index + 1)
+
+
+def read_obj(text: str) -> tuple:
+    vertices, faces = [], []
+    for number, line in enumerate(text.splitlines(), 1):
+        parts = line.split()
+        if not parts or parts[0] not in ("v", "f"):
+            continue
+        try:
+            if parts[0] == "v":
+                if len(parts) < 4:
+                    raise ValueError("a vertex needs three coordinates")
+                vertices.append([float(p) for p in parts[1:4]])
+            else:
+                ids = [int(p.split("/")[0]) for p in parts[1:]]
+                if len(ids) < 3:
+                    raise ValueError("a face needs three vertices")
+                ids = [i - 1 if i > 0 else len(vertices) + i for i in ids]
+                faces.extend([ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1))
+        except ValueError as error:
+            raise MeshFileError(f"not an OBJ file: line {number}: {error}") from None
+        if len(vertices) > MAX_MESH_ITEMS or len(faces) > MAX_MESH_ITEMS:
+            break  # validate() says so; no need to read the rest
+    return np.asarray(vertices, float).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3)
+
+
+def read_stl(data: bytes) -> tuple:
+    count = int.from_bytes(data[80:84], "little") if len(data) >= 84 else -1
+    if len(data) == 84 + 50 * count:  # binary: 80-byte header, count, then 50 bytes per triangle
+        record = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attr", "<u2")])
+        corners = np.frombuffer(data, record, count, 84)["corners"].astype(float).reshape(-1, 3)
+    elif data[:5].lower() != b"solid" and count >= 0:
+        raise MeshFileError(f"not an STL file: a binary STL of {count} triangles has {84 + 50 * count} bytes, "
+                            f"this one {len(data)}; an ASCII one starts with `solid`")
+    else:
+        words = data.decode("ascii", errors="replace").split()
+        try:
+            corners = np.array([[float(w) for w in words[k + 1:k + 4]] for k, w in enumerate(words)
+                                if w == "vertex"], float)
+            corners = corners.reshape(-1, 3)
+        except ValueError as error:
+            raise MeshFileError(f"not an STL file: {error}") from None
+        if len(corners) % 3:
+            raise MeshFileError("not an STL file: its corners do not make whole triangles")
+    if not np.all(np.isfinite(corners)):
+        raise MeshFileError("a corner is not a finite point")
+    vertices, inverse = np.unique(np.round(corners, 12), axis=0, return_inverse=True)
+    return vertices, inverse.reshape(-1, 3)

@@ -1,5 +1,0 @@
-"""`python -m isaac_lang ...`: the `isaac` command, for a Python whose scripts folder is not on PATH."""
-from .cli import entry
-
-if __name__ == "__main__":  # pragma: no cover (run as a program)
-    entry()
