@@ -6,10 +6,12 @@ functions), not by importing."""
 from __future__ import annotations
 
 import ast
+import io
 import re
 import shutil
 import subprocess
 import sys
+import tokenize
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -131,12 +133,26 @@ def test_the_engine_keeps_few_files_at_its_top_level():
     assert len(loose) <= 6, loose
 
 
+def prose_of(path: Path) -> list:
+    """[(line, text)] of the comments and docstrings of a Python file: where the code cites a document."""
+    source = path.read_text(encoding="utf-8")
+    found = [(token.start[0], token.string) for token in tokenize.generate_tokens(io.StringIO(source).readline)
+             if token.type == tokenize.COMMENT]
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value,
+                                                                                                    str):
+                found += [(first.lineno + i, text) for i, text in enumerate(first.value.value.splitlines())]
+    return found
+
+
 def test_every_document_the_code_cites_exists():
     cited = re.compile(r"(?<![\w/.-])((?:[\w.-]+/)*[\w.-]+\.md)\b")
     missing = []
     for path in [p for folder in PACKAGES.values() for p in folder.rglob("*.py")] + list(ROOT.glob("tests/**/*.py")):
-        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-            for document in cited.findall(line):
+        for number, text in prose_of(path):
+            for document in cited.findall(text):
                 if not (ROOT / document).is_file() and not any(ROOT.glob(f"docs/**/{document}")):
                     missing.append(f"{path.relative_to(ROOT)}:{number}: {document}")
     assert missing == []
