@@ -1,0 +1,1 @@
+"""isaac: the application layer: the command line, watch, golden, sweeps, the language server."""
