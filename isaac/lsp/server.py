@@ -140,7 +140,7 @@ class IsaacLanguageServer(LanguageServer):
             if include is None:
                 continue
             pos = finding.diagnostic.pos
-            message = f"in `{include.target.name}` line {pos.line}: {finding.diagnostic.message}"
+            message = f"in the included {pos}: {finding.diagnostic.message}"
             notes.append(T.Diagnostic(self.range_of(include.span.path, include.span.line, include.span.col,
                                                     include.span.end_col - include.span.col),
                                       message, severity=SEVERITIES.get(finding.diagnostic.severity), source="isaac"))
