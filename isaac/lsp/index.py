@@ -63,9 +63,15 @@ class Definition:
     header: str = ""  # its first line as written
     extent: tuple = None  # (first line, last line) of the whole declaration, in its file
     part: str | None = None  # an instance: the part it uses
+    # the scopes it is visible in: its own for the scoped names (lets, parameters, loop variables, kinds, parts);
+    # for the scene's names (bodies, materials, constraints, ...) the innermost part around it, loops aside
+    visible: tuple = ()
 
     def matches(self, name: str) -> bool:
-        """Whether `name` (as used) is this name, or one of the names a `{i}` template makes."""
+        """Whether `name` (as used) is this name, one of the names a `{i}` template makes, or the template written
+        again (`link{i}` in a loop; `link{i+1}` too)."""
+        if "{" in name:
+            return _NAME_PIECES.sub("{}", name) == _NAME_PIECES.sub("{}", self.name)
         if "{" not in self.name:
             return name == self.name
         return template_pattern(self.name).fullmatch(name) is not None
@@ -108,6 +114,7 @@ class SceneIndex:
     references: list = field(default_factory=list)
     properties: list = field(default_factory=list)
     includes: list = field(default_factory=list)
+    part_scopes: set = field(default_factory=set)  # the scopes that `part` definitions open
     files: dict = field(default_factory=dict)  # path -> text, every file indexed (the root's first)
     trees: dict = field(default_factory=dict)  # path -> parse tree (None: a syntax error)
 
@@ -137,10 +144,10 @@ class SceneIndex:
     def named(self, kinds=None, scope: tuple = (), order: int | None = None) -> list:
         """The definitions visible in a scope (of the given kinds), innermost first, one per name."""
         seen, out = set(), []
-        for definition in sorted(self.definitions, key=lambda d: -len(d.scope)):
+        for definition in sorted(self.definitions, key=lambda d: -len(d.visible)):
             if kinds is not None and definition.kind not in kinds:
                 continue
-            if definition.scope != scope[:len(definition.scope)] or definition.name in seen:
+            if definition.visible != scope[:len(definition.visible)] or definition.name in seen:
                 continue
             seen.add(definition.name)
             out.append(definition)
@@ -159,7 +166,7 @@ class SceneIndex:
         for definition in self.definitions:
             if kinds is not None and definition.kind not in kinds:
                 continue
-            if definition.scope != scope[:len(definition.scope)] or not definition.matches(name):
+            if definition.visible != scope[:len(definition.visible)] or not definition.matches(name):
                 continue
             if best is None or _closer(definition, best, order):
                 best = definition
@@ -173,31 +180,34 @@ class SceneIndex:
         part = self._innermost(instance.part, instance.scope, instance.order, ("part",))
         if part is None:
             return None
-        inside = [d for d in self.definitions if id(part.tree) in d.scope and d.matches(reference.name)
-                  and d.kind not in _LOCAL_KINDS]
+        inside = [d for d in self.definitions if d.visible[-1:] == (id(part.tree),) and d.matches(reference.name)
+                  and d.kind not in SCOPED_KINDS]
         return inside[0] if inside else None
 
 
 # what each role of a reference may name
 _ROLE_KINDS = {"call": ("kind",), "part": ("part",)}
-# names that are never reached from outside their scope
-_LOCAL_KINDS = ("let", "parameter", "loop variable")
 
 
 def _closer(candidate: Definition, best: Definition, order: int) -> bool:
     """Of two declarations visible at a use: the one in the inner scope; in one scope, the last before the use
     (a `let` may be given again), else the first after it."""
-    if len(candidate.scope) != len(best.scope):
-        return len(candidate.scope) > len(best.scope)
+    if len(candidate.visible) != len(best.visible):
+        return len(candidate.visible) > len(best.visible)
     before, best_before = candidate.order < order, best.order < order
     if before != best_before:
         return before
     return candidate.order > best.order if before else candidate.order < best.order
 
 
+_NAME_PIECES = re.compile(r"\{[^}]*\}")
+# the names that are scoped (isaac_lang.lower_expr.Scope: values, kinds, parts); others belong to the scene
+SCOPED_KINDS = ("let", "parameter", "loop variable", "kind", "part")
+
+
 def template_pattern(name: str) -> re.Pattern:
     """`link{i+1}_tip` -> the names it makes: link0_tip, link12_tip, ... (the pieces are whole numbers)."""
-    pieces = re.split(r"\{[^}]*\}", name)
+    pieces = _NAME_PIECES.split(name)
     return re.compile(r"-?\d+".join(re.escape(p) for p in pieces))
 
 
@@ -271,6 +281,7 @@ class _Walker:
     def _part_def(self, item, scope):
         self.define("part", item.children[0], scope, item)
         inner = scope + (id(item),)
+        self.index.part_scopes.add(id(item))
         body = []
         for child in item.children[1:]:
             if isinstance(child, Tree) and child.data == "param":
@@ -400,9 +411,15 @@ class _Walker:
         span = self.span(token)
         definition = Definition(kind, str(token), span, scope, next(self.order), tree,
                                 header=self.lines[span.line - 1].strip() if span.line <= len(self.lines) else "",
-                                extent=(span.line, _last_line(tree, span.line)))
+                                extent=(span.line, _last_line(tree, span.line)), visible=self.visible(kind, scope))
         self.index.definitions.append(definition)
         return definition
+
+    def visible(self, kind: str, scope: tuple) -> tuple:
+        if kind in SCOPED_KINDS:
+            return scope
+        parts = [k for k, scope_id in enumerate(scope) if scope_id in self.index.part_scopes]
+        return scope[:parts[-1] + 1] if parts else ()
 
     def use(self, token, scope: tuple, role: str) -> Reference | None:
         if not isinstance(token, Token):
