@@ -11,6 +11,7 @@
     isaac bench [--quick] [--only NAME] [--out DIR]   the benchmark suite (benchmarks/, a source checkout)
     isaac golden SCENE... [--update] [--set ...]   golden files beside each scene: record, or check (exit 3)
     isaac live SCENE [--mic [DEVICE|FILE]] [--until S] [--port N] [--no-browser] [--out DIR]   real time, a page
+    isaac lsp                                    the language server for editors, on stdio (isaac/lsp)
     isaac --version; isaac -q|-qq|-v COMMAND ...   no progress bar; errors and warnings only; more verbose
 """
 from __future__ import annotations
@@ -116,6 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--keep", choices=("outputs", "table"), default="outputs",
                        help="outputs: each variant's files in OUT/variants/<id>/ (default); table: the table only")
     verbosity_options(sweep, argparse.SUPPRESS)
+    commands.add_parser("lsp", help="the language server for editors (LSP over stdin/stdout): docs/editors.md")
     return parser
 
 
@@ -417,8 +419,16 @@ def cmd_live(args, sources) -> int:
     return live(args, lambda a: _load(a, sources), _verbosity(args), default_out, _check_until, _overrides(args))
 
 
+def cmd_lsp(args, sources) -> int:
+    """The language server (isaac/lsp), imported only here."""
+    from isaac.lsp import serve_stdio
+
+    return serve_stdio()
+
+
 COMMANDS = {"parse": cmd_parse, "check": cmd_check, "plan": cmd_plan, "run": cmd_run, "watch": cmd_watch,
-            "export": cmd_export, "bench": cmd_bench, "sweep": cmd_sweep, "golden": cmd_golden, "live": cmd_live}
+            "export": cmd_export, "bench": cmd_bench, "sweep": cmd_sweep, "golden": cmd_golden, "live": cmd_live,
+            "lsp": cmd_lsp}
 
 def entry() -> None:  # pragma: no cover (the `isaac` command; tests call main)
     """`isaac ...`: main(), then leave without the interpreter's teardown. Every output is written and closed by

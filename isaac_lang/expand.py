@@ -56,8 +56,10 @@ class Expansion:
 
 
 class Expander:
-    def __init__(self, root: Path, sources: SourceCache, reporter: Reporter, overrides: dict, limits: Limits):
+    def __init__(self, root: Path, sources: SourceCache, reporter: Reporter, overrides: dict, limits: Limits,
+                 texts: dict | None = None):
         self.root = root
+        self.texts = texts or {}  # real path -> text held in memory (an editor's unsaved buffer), read instead
         self.sources = sources
         self.reporter = reporter
         self.overrides = overrides  # name -> Typed
@@ -95,7 +97,7 @@ class Expander:
         """The parse tree of a scene file, or None with the reason reported (at the include that names it, or at
         the bad byte of a file that is not UTF-8). A refused file is never opened (isaac_ir/files.py)."""
         try:
-            text = self.confinement.read_text(path)
+            text = self._read_text(path)
         except BadEncoding as error:
             self.sources.add(name, error.text)
             self.reporter.error(f"`{name}`: {error.message}", SourcePos(name, error.line, error.col), error.hint)
@@ -106,6 +108,15 @@ class Expander:
             return None
         self.sources.add(name, text)
         return parse_text(text, name, self.reporter)
+
+    def _read_text(self, path: Path) -> str:
+        """The text of a scene file: the copy held in memory when there is one, else the file's (both only where
+        the scene may read)."""
+        if self.texts:
+            held = self.texts.get(self.confinement.allowed(path))
+            if held is not None:
+                return held
+        return self.confinement.read_text(path)
 
     # -- items --------------------------------------------------------------------------------------------
 

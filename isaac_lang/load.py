@@ -40,12 +40,14 @@ def load_scene(path, overrides: dict | None = None, limits: Limits | None = None
 
 
 def load_text(text: str, name: str = "<scene>", overrides: dict | None = None, folder=".",
-              limits: Limits | None = None, sources: SourceCache | None = None, assets: bool = True) -> Loaded:
-    """The same for scene text held in memory (includes and assets resolve relative to `folder`)."""
+              limits: Limits | None = None, sources: SourceCache | None = None, assets: bool = True,
+              texts: dict | None = None) -> Loaded:
+    """The same for scene text held in memory (includes and assets resolve relative to `folder`); `texts` maps
+    the real paths of included files to texts held in memory too (an editor's unsaved buffers)."""
     folder = Path(folder)
     path = folder / name
     return _load(path, folder, overrides or {}, limits or Limits(), sources or SourceCache(), text=text,
-                 assets=assets)
+                 assets=assets, texts=texts)
 
 
 @contextmanager
@@ -66,20 +68,20 @@ def _collector_paused():
 
 
 def _load(path: Path, root: Path, overrides: dict, limits: Limits, sources: SourceCache, text=None,
-          assets: bool = True) -> Loaded:
+          assets: bool = True, texts: dict | None = None) -> Loaded:
     with _collector_paused():
         try:
-            return _load_stages(path, root, overrides, limits, sources, text, assets)
+            return _load_stages(path, root, overrides, limits, sources, text, assets, texts)
         except SceneError as error:
             raise explain_unit_typos(error, sources) from None
 
 
 def _load_stages(path: Path, root: Path, overrides: dict, limits: Limits, sources: SourceCache,
-                 text=None, assets: bool = True) -> Loaded:
+                 text=None, assets: bool = True, texts: dict | None = None) -> Loaded:
     reporter = Reporter()
     parsed_overrides = _parse_overrides(overrides, reporter, sources)
     reporter.raise_if_any()
-    expander = Expander(root, sources, reporter, parsed_overrides, limits)
+    expander = Expander(root, sources, reporter, parsed_overrides, limits, texts)
     scope = Scope()
     if text is None:
         expander.expand_file(path, scope)

@@ -32,15 +32,11 @@ from isaac_ir import units as U
 from isaac_ir.diagnostics import SceneError, did_you_mean
 from isaac_lang.lower_expr import CONTEXTS, FIXED, Typed, interpolate_name
 from isaac_lang.props import Props
-from isaac_lang.vocabulary import MOTIONS
+from isaac_lang.vocabulary import MOTIONS, PART_PROPS
 
 PART_SHAPES = ("sphere", "box", "cylinder", "capsule", "mesh")
 NEEDS = {"sphere": ("radius",), "box": ("size",), "cylinder": ("radius", "length"), "capsule": ("radius", "length"),
          "mesh": ("file",)}
-PART_PROPS = {"radius": "length", "length": "length along the part's z", "size": "box edges", "file": "mesh file",
-              "scale": "mesh scale", "mass": "kg", "density": "kg/m3", "at": "its origin, about the body's origin",
-              "orient": "its orientation in the body", "material": "material name (default: the body's)",
-              "modes": "((f, decay, gain), ...)"}
 # properties of a single shape, which a compound body's parts carry instead
 GEOMETRY = ("radius", "length", "size", "normal", "file", "scale")
 # parts of one body after its loops are unrolled, at most (a body is one rigid thing, not a scene)

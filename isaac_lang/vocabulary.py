@@ -39,6 +39,10 @@ SOUND_PROPS = {"play": "audio-graph expression", "gain": "linear gain or dB"}
 LISTENER_PROPS = {"at": "position", "gain": "gain", "delay": "on | off"}
 AUDIO_PROPS = {"rate": "sample rate", "channels": "1 or 2"}
 
+PART_PROPS = {"radius": "length", "length": "length along the part's z", "size": "box edges", "file": "mesh file",
+              "scale": "mesh scale", "mass": "kg", "density": "kg/m3", "at": "its origin, about the body's origin",
+              "orient": "its orientation in the body", "material": "material name (default: the body's)",
+              "modes": "((f, decay, gain), ...)"}
 CONSTRAINT_PROPS = {"stabilize": "frequency", "damping": "damping ratio", "compliance": "procedural softness"}
 FORCE_PROPS = {"stiffness": "N/m", "rest": "rest length", "damping": "N*s/m", "force": "N (may follow t)",
                "torque": "N*m (may follow t)"}
@@ -48,5 +52,5 @@ FORCE_PROPS = {"stiffness": "N/m", "rest": "rest length", "damping": "N*s/m", "f
 def property_names() -> frozenset:
     """Every name a block or a scene setting knows (a line may open with one of them legitimately)."""
     tables = (SETTINGS, SOLVER_PROPS, CAMERA_PROPS, LIGHT_PROPS, MATERIAL_PROPS, BODY_PROPS, WIND_PROPS, SOUND_PROPS,
-              LISTENER_PROPS, AUDIO_PROPS, CONSTRAINT_PROPS, FORCE_PROPS)
+              LISTENER_PROPS, AUDIO_PROPS, CONSTRAINT_PROPS, FORCE_PROPS, PART_PROPS)
     return frozenset(name for table in tables for name in table)
