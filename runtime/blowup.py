@@ -81,7 +81,7 @@ def body_failure(sim, b: int) -> NumericalError:
 def acting_on(sim, b: int) -> tuple:
     """([constraints], [bodies in contact]) acting on body b in the rows of the last step, by name."""
     held, touching = [], []
-    act, c = sim._act, sim.plan.constraints
+    act, c = sim.rows_now, sim.plan.constraints
     if act is not None and c is not None:
         rows = act.rows[act.rows < len(c.row_constraint)]
         on = rows[(c.row_bodies[rows] == b).any(axis=1)]
@@ -99,7 +99,7 @@ def acting_on(sim, b: int) -> tuple:
 def _assembling(sim, names: list) -> list:
     """[(constraint, omega rad/s, f Hz)] of the named constraints whose rows follow a stabilization curve in
     the last step (not held; every row under `stabilization baumgarte`), stiffest first."""
-    act, c = sim._act, sim.plan.constraints
+    act, c = sim.rows_now, sim.plan.constraints
     if act is None or c is None or not names:
         return []
     cons = sim.compiled.model.constraints

@@ -20,6 +20,7 @@ import numpy as np
 from .blowup import NumericalError, constraint_failure, failure
 from .core import data as D
 from .core.bodies import RUNAWAY_SPEED  # noqa: F401 (callers of the step loop import it from here)
+from .core.bodies import place_kinematic
 from .core.build import CompiledPlan
 from .core import model as M
 from .core.entries import measure, row_errors, state_constraint_error, state_energy
@@ -80,7 +81,7 @@ class Simulation:
         # a body with `kinematic A .. B`: the mass properties it has off its path (the plan's are changed in place
         # while it is on it, for the stages that read them)
         self._off_path = (plan.dynamic.copy(), plan.inv_mass.copy(), plan.inv_inertia_body.copy())
-        self._act = None  # the Active rows of the epoch the state is in
+        self._act = None  # the Active rows of the epoch the state is in (active_rows; `rows_now` reads it)
         self._frame_now = False  # a frame is due at the state's time (recorded before the next step)
         self._epoch_in = ()  # the epoch (and windowed exclusions and `collide`s) the collision stage was told of
         self._status = np.zeros(4, np.int64)
@@ -126,7 +127,7 @@ class Simulation:
         """(max |C| over active position rows, global index of that row or -1) at the current state."""
         if self.plan.constraints is None:
             return 0.0, -1
-        act = self._active()
+        act = self.active_rows()
         c, s = self.compiled, self.state
         error, row = state_constraint_error(c.model, act, c.scratch, s.y, c.table.evaluate(s.t, 0.0, 1))
         return float(error), int(row)
@@ -159,7 +160,7 @@ class Simulation:
         if self.plan.constraints is None:
             return {}, []
         self.constraint_errors()  # evaluates C of every active row into the scratch
-        act, c = self._active(), self.compiled
+        act, c = self.active_rows(), self.compiled
         rows = act.rows.tolist()
         residuals = {r: abs(float(c.scratch.C[r])) for r in rows if not c.model.constraints.velocity_only[r]}
         return residuals, [r for i, r in enumerate(rows) if c.scratch.dropped[i]]
@@ -233,7 +234,7 @@ class Simulation:
         """One step of length tau from the live state at its time, with the plan's own step (the collision stage
         re-runs part of a step with it); the time and step count are the caller's to update."""
         s = self.state
-        taken = self.stepper.run(self._active(), s.y, s.t, tau, 1, np.zeros(0, np.int64), self._frame_buffer(0),
+        taken = self.stepper.run(self.active_rows(), s.y, s.t, tau, 1, np.zeros(0, np.int64), self._frame_buffer(0),
                                  self._status)
         if self._status[0] not in (DONE, CONTACT):  # (a change of contact is the caller's to look at)
             s.t += taken * tau
@@ -257,7 +258,7 @@ class Simulation:
     def _advance(self, t_target: float, sink) -> None:
         s = self.state
         while True:
-            self._active()
+            self.active_rows()
             # a frame at the start, or at a switch: recorded here, in the epoch that begins
             if sink is not None and sink.next < len(sink.times) and sink.times[sink.next] <= s.t + 1e-12:
                 self._record_now(sink)
@@ -341,7 +342,7 @@ class Simulation:
                     self._count_look()
                 if getattr(self.collider, "wants_capture", None):
                     self.switch_to_capture(self.collider.wants_capture, t0 + done * h)
-                self._active()
+                self.active_rows()
             if in_python:
                 self._after_step(h)
             if (in_python or stopped) and done in frame_ends and sink is not None:
@@ -435,7 +436,16 @@ class Simulation:
             self.plan.inv_inertia_body[b] = 0.0 if on[k] else inv_inertia[b]
         self._place_kinematic()
 
-    def _active(self):
+    @property
+    def rows_now(self):
+        """The Active rows the last step ran with (None before the first), as they were: a blow-up's diagnosis
+        and the collision stage's frame contacts read them without bringing them up to date."""
+        return self._act
+
+    def active_rows(self):
+        """The Active rows of the epoch the state is in, brought up to date: kinematic windows followed, the
+        collision stage told of a new epoch or phase, the stepper told of a new set. The collision stage calls it
+        after it changes the contacts."""
         self._follow_paths()
         c = self.plan.constraints
         epoch = c.epoch_at(self.state.t + 1e-12) if c is not None else None
@@ -476,7 +486,7 @@ class Simulation:
         # the procedural plan's exact contacts gain energy when a jointed body strikes (a chain landing): it hands
         # over at the first impact of one, whatever it strikes (Collider.on_epoch marks them)
         self.collider.jointed_strike = plan.solver == "procedural" and self.capture_refused is None
-        self._active()
+        self.active_rows()
         self.collider.start()
 
     def _count_look(self) -> None:
@@ -498,7 +508,7 @@ class Simulation:
         self.collider, self.stepper = stage, CaptureStepper(self.compiled, self.plan, stage)
         self._compile_notice = CompileNotice.begin(*self.stepper.entries)
         self._epoch_in = ()
-        act = self._active()
+        act = self.active_rows()
         s = self.state
         if t_end is not None and t_end - s.t > 1e-12:
             self.stepper.run(act, s.y, s.t, t_end - s.t, 1, np.zeros(0, np.int64), self._frame_buffer(0), self._status)
@@ -523,12 +533,9 @@ class Simulation:
         return failure(self)
 
     def _place_kinematic(self) -> None:
+        """The bodies on their paths now at their paths' pose and velocity: the compiled kernel's own code
+        (core/bodies.py place_kinematic), run as Python on the time table's row of now."""
         kin = self.compiled.model.kinematic
         if len(kin.body):
-            table = self.compiled.table.evaluate(self.state.t, 0.0, 1)
-            for b, c, on in zip(kin.body.tolist(), kin.column.tolist(), kin.on.tolist()):
-                if not on:
-                    continue
-                y = self.state.y[b]
-                y[0:3], y[7:10] = table[0, c + M.KIN_X:c + M.KIN_X + 3], table[0, c + M.KIN_V:c + M.KIN_V + 3]
-                y[3:7], y[10:13] = table[0, c + M.KIN_Q:c + M.KIN_Q + 4], table[0, c + M.KIN_W:c + M.KIN_W + 3]
+            place_kinematic.py_func(kin, self.compiled.table.evaluate(self.state.t, 0.0, 1), 0, self.state.y)
+

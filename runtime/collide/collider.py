@@ -155,7 +155,7 @@ class Collider:
                 self.lasting.remove(which)
             else:
                 self.lasting.to_sliding(which, lam, s.q)
-            self.sim._active()
+            self.sim.active_rows()
             self._advance(h, epoch)
         elif code == STOPS and self.plan.solver == "procedural":
             # its friction impulse took the slip away inside a substep (core/contact.py friction_impulses)
@@ -165,7 +165,7 @@ class Collider:
             self._rewind(h)
             self._advance(self._stop_time(which, h, epoch), epoch)
             self.lasting.to_sticking(which, s.x, s.q)
-            self.sim._active()
+            self.sim.active_rows()
             self._advance(t_end - s.t, epoch)
             s.t = t_end
         else:  # NEAR or LEAVES: something new may touch
@@ -211,7 +211,7 @@ class Collider:
 
             c = self.sim.compiled
             out = np.zeros((1, len(c.model.constraints.family), 8))
-            frame_contacts(c.model, self.sim._act, c.scratch, self.sim.state.y, out)
+            frame_contacts(c.model, self.sim.rows_now, c.scratch, self.sim.state.y, out)
             table = out[0]
         contacts = self.lasting.contacts
         bodies = {k: (contacts[key].a, contacts[key].b, contacts[key].part_a, contacts[key].part_b)
@@ -242,7 +242,7 @@ class Collider:
             if self.wants_capture:
                 return  # (the rest of the step is the capturing path's: Simulation.switch_to_capture)
             self._keep_contacts()
-            self.sim._active()
+            self.sim.active_rows()
             self._save_start_here()  # the new start of what is left of the step
             self._advance(t_end - s.t, epoch)
             s.t = t_end

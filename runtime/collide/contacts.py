@@ -212,7 +212,7 @@ class ContactSet:
         """The local row (the solve's order) of a contact's normal row."""
         k = self.instance_of[key]
         c = self.sim.compiled
-        return int(self.sim._act.local[c.model.constraints.first_row[k]])
+        return int(self.sim.rows_now.local[c.model.constraints.first_row[k]])
 
     def _key(self, instance: int):
         for key, k in self.instance_of.items():
