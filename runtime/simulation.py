@@ -174,11 +174,11 @@ class Simulation:
         if paths is None or index not in paths.index:
             raise ValueError(f"body `{name}` is not kinematic; declare it `kinematic` to drive it")
         quat = np.asarray(orientation, float)
-        paths.overrides[index] = (np.asarray(position, float), quat / np.linalg.norm(quat))
+        self.compiled.table.poses[index] = (np.asarray(position, float), quat / np.linalg.norm(quat))
         self._place_kinematic()
 
     def release_pose(self, name: str) -> None:
-        self.plan.kinematics.overrides.pop(self.body(name), None)
+        self.compiled.table.poses.pop(self.body(name), None)
 
     def pull(self, name: str, point, target, stiffness: float, damping: float) -> None:
         """Pull a point of a body (its frame) toward a world point with a spring of rest length 0, until

@@ -46,6 +46,9 @@ class TimeTable:
     def __init__(self):
         self.producers: list = []  # (column, width, produce(times) -> (G, width))
         self.width = 1  # column TIME
+        # body index -> (x, q): a kinematic body held where an embedding program put it (Simulation.set_pose), the
+        # run's input: the plan's paths are never written
+        self.poses: dict = {}
 
     def add(self, width: int, produce) -> int:
         column = self.width
@@ -69,13 +72,13 @@ class TimeTable:
     # -- the producers of the plan's stages -----------------------------------------------------------------
 
     def add_kinematic(self, paths, k: int) -> int:
-        """KIN_WIDTH columns for kinematic body k of the plan's paths (or its live override)."""
+        """KIN_WIDTH columns for kinematic body k of the plan's paths (or the pose a program holds it at)."""
         body = int(paths.index[k])
 
         def produce(times):
             out = np.zeros((len(times), M.KIN_WIDTH))
-            if body in paths.overrides:  # held where a program put it (Simulation.set_pose)
-                x, q = paths.overrides[body]
+            if body in self.poses:  # held where a program put it (Simulation.set_pose)
+                x, q = self.poses[body]
                 out[:, M.KIN_X:M.KIN_X + 3], out[:, M.KIN_Q:M.KIN_Q + 4] = x, q
                 return out
             out[:, M.KIN_X:M.KIN_X + 3] = tabulate(paths.position[k], times, 3)

@@ -22,7 +22,6 @@ class KinematicPaths:
     orientation: list  # expressions (4,)
     orientation_rate: list
     orientation_acceleration: list
-    overrides: dict  # body index -> (x, q) set live by an embedding program (Simulation.set_pose)
     windows: np.ndarray = None  # (k, 2) s: when each is on its path (-inf, inf: throughout; else dynamic outside)
 
 
@@ -43,7 +42,7 @@ def compile_kinematics(scene: ir.Scene) -> KinematicPaths | None:
                           _guarded(velocity, bodies, "velocity"), _guarded(acceleration, bodies, "acceleration"),
                           _guarded(orientation, bodies, "orientation"),
                           _guarded(rate, bodies, "rate of turning"), _guarded(turning, bodies, "angular acceleration"),
-                          {}, windows)
+                          windows)
 
 
 def _guarded(paths: list, bodies: list, what: str) -> list:
