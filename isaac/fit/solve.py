@@ -116,8 +116,7 @@ def find(search: Search, goals: tuple) -> None:
             method(search, start)
         except Converged:
             return
-        if search.best[1] is not None and search.evaluator.outcome(search.to_si(search.best[1])).met() \
-                and method is not bracket:
+        if search.best[1] is not None and search.evaluator.outcome(search.to_si(search.best[1])).met():
             return
 
 
