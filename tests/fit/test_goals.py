@@ -188,3 +188,26 @@ def test_a_goal_out_of_reach_exits_3_naming_it(tmp_path, capsys):
     code, found = fit(tmp_path, SLIDE.format(v0=1.5, d=0.2, low=0.1, high=0.45))
     assert code == 3 and not found["goals"][0]["met"]
     assert "`mark` missed by" in capsys.readouterr().err
+
+
+# -- docs/goals.md ----------------------------------------------------------------------------------------------
+
+def _doc_examples():
+    from ..doc_examples import scene_examples
+
+    return [e for e in scene_examples() if e.doc == "docs/goals.md"]
+
+
+DOC_ANSWERS = {  # the closed forms the page gives
+    "throw": {"vx": 2.5 / 0.8, "vy": (1.3 + G * 0.64 / 2) / 0.8},
+    "slide_to_mark": {"mu": 4.0 / (2 * 0.5 * G)},
+    "drop_on_the_beat": {"drop": 0.05 + G * 0.16 / 2},
+}
+
+
+@pytest.mark.parametrize("example", _doc_examples(), ids=lambda e: e.name)
+def test_every_example_of_docs_goals_fits_to_its_closed_form(tmp_path, example):
+    code, found = fit(tmp_path, example.text)
+    assert code == 0
+    for name, answer in DOC_ANSWERS[example.name].items():
+        assert found["parameters"][name] == pytest.approx(answer, abs=1e-4)
