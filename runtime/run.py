@@ -21,7 +21,8 @@ import numpy as np
 from isaac_ir import ir
 from isaac_ir.diagnostics import warning_diagnostic
 
-from . import checks, goals
+from . import checks
+from .outputs import goals
 from .plan.extras import check_extras
 from .outputs import Recorder, write_json, write_npz
 from .outputs.outputset import OutputSet
@@ -94,7 +95,7 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
             if options.on_frame is not None:
                 options.on_frame(simulation, recorded)
 
-        states = {}  # the states at the goals' times (runtime/goals.py)
+        states = {}  # the states at the goals' times (runtime/outputs/goals.py)
         try:
             frame_call = on_frame if options.progress or options.on_frame else None
             if scene.goals:

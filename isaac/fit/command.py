@@ -104,7 +104,7 @@ def fitted_run(args, varies, point, search, overrides, limits, out: Path, verbos
     code = run_scene(scene, out, options, scene_path=Path(args.scene), more=add_fit_json)
     missed = [g for g in said.get("goals", []) if not g["met"]]
     if missed:
-        from isaac_runtime.goals import describe_miss
+        from isaac_runtime.outputs.goals import describe_miss
 
         print(f"{args.scene}: fit: {len(missed)} goal{'s' if len(missed) > 1 else ''} not met: "
               + "; ".join(describe_miss(g) for g in missed), file=sys.stderr)

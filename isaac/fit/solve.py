@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import optimize
 
-from isaac_runtime.goals import residuals
+from isaac_runtime.outputs.goals import residuals
 
 from .evaluate import MISSING, Evaluator
 
