@@ -12,6 +12,7 @@
     isaac golden SCENE... [--update] [--set ...]   golden files beside each scene: record, or check (exit 3)
     isaac live SCENE [--mic [DEVICE|FILE]] [--until S] [--port N] [--no-browser] [--out DIR]   real time, a page
     isaac lsp                                    the language server for editors, on stdio (isaac/lsp)
+    isaac fit SCENE [--set ...] [--workers N | --scheduler ADDRESS] [--out DIR]   values that meet the goals
     isaac --version; isaac -q|-qq|-v COMMAND ...   no progress bar; errors and warnings only; more verbose
 """
 from __future__ import annotations
@@ -118,6 +119,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="outputs: each variant's files in OUT/variants/<id>/ (default); table: the table only")
     verbosity_options(sweep, argparse.SUPPRESS)
     commands.add_parser("lsp", help="the language server for editors (LSP over stdin/stdout): docs/editors.md")
+    from isaac.fit.command import add_parser as fit_command  # isaac fit (isaac/fit/command.py)
+
+    fit_command(commands, scene_command)
     return parser
 
 
@@ -426,9 +430,16 @@ def cmd_lsp(args, sources) -> int:
     return serve_stdio()
 
 
+def cmd_fit(args, sources) -> int:
+    """Values of the `vary`s that meet the goals (isaac/fit; scipy and, with workers, dask from here on)."""
+    from isaac.fit.command import cmd_fit as fit
+
+    return fit(args, lambda a: _load(a, sources), default_out, _overrides(args), _limits(args), _verbosity(args))
+
+
 COMMANDS = {"parse": cmd_parse, "check": cmd_check, "plan": cmd_plan, "run": cmd_run, "watch": cmd_watch,
             "export": cmd_export, "bench": cmd_bench, "sweep": cmd_sweep, "golden": cmd_golden, "live": cmd_live,
-            "lsp": cmd_lsp}
+            "lsp": cmd_lsp, "fit": cmd_fit}
 
 def entry() -> None:  # pragma: no cover (the `isaac` command; tests call main)
     """`isaac ...`: main(), then leave without the interpreter's teardown. Every output is written and closed by

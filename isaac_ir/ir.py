@@ -234,6 +234,35 @@ class Collide:
 
 
 @dataclass(frozen=True)
+class Vary:
+    """`vary NAME in LOW .. HIGH`: the `let` NAME is free between LOW and HIGH for `isaac fit` (docs/goals.md)."""
+
+    name: str
+    low: float  # SI
+    high: float  # SI
+    start: float  # SI: the let's own value (after --set), where a fit starts
+    dimension: tuple  # (m, kg, s, rad) exponents of the let's value
+    unit: str  # the unit the bounds were written in ("deg", "m/s"; "" for a plain number), to print values in
+    source: str
+
+
+@dataclass(frozen=True)
+class Goal:
+    """`goal NAME: BODY.QUANTITY at TIME = VALUE within TOLERANCE` (kind "state") or `goal NAME: first
+    EVENT(A, B) at TIME within TOLERANCE` (kind "event"); values SI (docs/goals.md)."""
+
+    name: str
+    kind: str  # state | event
+    bodies: tuple  # (body,) for a state goal; (a, b) for an event goal
+    quantity: str  # position | velocity | angle; an event goal: collide | contact
+    component: str | None  # x | y | z, or None for the whole quantity
+    time: float  # s: when the state must hold, or when the first event must come
+    target: Any  # float, or a 3-tuple for a whole position or velocity; None for an event goal (its time)
+    tolerance: float  # in the quantity's unit (s for an event goal)
+    source: str
+
+
+@dataclass(frozen=True)
 class Listener:
     position: Vec3
     gain: float
@@ -270,6 +299,9 @@ class Scene:
     # `collide` statements (Collide, ...); in the canonical JSON only when there are some, so that the IR of a
     # scene without one is what it was before the statement existed
     collides: tuple = field(default=(), metadata={"omit_empty": True})
+    # `vary` and `goal` statements (Vary, ..., Goal, ...; docs/goals.md); omitted when empty, likewise
+    varies: tuple = field(default=(), metadata={"omit_empty": True})
+    goals: tuple = field(default=(), metadata={"omit_empty": True})
     schema: str = SCHEMA
     # where each scene-wide setting was written: (("time", "file:line:col"), ("solver.step", ...), ...), so that
     # the plan can point at the setting a budget is about; not part of the canonical IR (no JSON, no comparison)

@@ -53,6 +53,7 @@ class Expansion:
     # integrates from there)
     folder: Path | None = None
     confinement: Confinement | None = None  # where those files may be read from (isaac_ir/files.py)
+    goals: list = field(default_factory=list)  # (tree, scope, lowerer) of `vary` and `goal` (lower_goals.py)
 
 
 class Expander:
@@ -151,6 +152,10 @@ class Expander:
             self.out.settings.append((item, scope, lowerer))
         elif kind == "solver":
             self.out.solvers.append((item, scope, lowerer))
+        elif kind in ("vary", "goal"):
+            if scope.prefix:
+                raise lowerer.fail(f"`{kind}` belongs to the scene, not inside a part", item)
+            self.out.goals.append((item, scope, lowerer))
         elif kind in DECLARATIONS:
             self._declaration(kind, item, scope, lowerer)
         else:  # pragma: no cover - the grammar has no other items

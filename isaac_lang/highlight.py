@@ -13,7 +13,7 @@ from pygments.token import Comment, Error, Keyword, Name, Number, Operator, Punc
 # the grammar's keywords (isaac_lang.syntax.KEYWORDS) and its other fixed words
 KEYWORDS = ("scene", "let", "include", "material", "body", "constraint", "kind", "force", "wind", "sound",
             "camera", "light", "solver", "exclude", "collide", "part", "use",
-            "for")
+            "for", "vary", "goal")
 WORDS = ("in", "during", "from", "until", "on", "world", "keys")
 # shapes, motions, solver plans, integrators and switches: words that stand for a choice
 CHOICES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh", "compound", "dynamic", "static", "kinematic",

@@ -16,6 +16,7 @@ from isaac_ir.diagnostics import Reporter, SceneError, SourcePos, did_you_mean
 from isaac_lang.expand import Decl, Expansion
 from isaac_lang.assets import refused_assets
 from isaac_ir.meshfile import mesh_problem
+from isaac_lang.lower_goals import GoalLowerer
 from isaac_lang.lower_constraints import ConstraintLowerer, lengths_over_first_minute
 from isaac_lang.origins import setting_origins
 from isaac_lang.lower_expr import BodyRef, ExprContext, ExprLowerer, Scope, is_table, ref_name, written_with
@@ -66,6 +67,7 @@ class SceneLowerer:
         sounds = self._each(by_kind["sound"], lambda d: self._sound(d, wind_names))
         exclusions = self._each(by_kind["exclude"], self._exclusion)
         collides = self._each(by_kind["collide"], lambda d: self._collide(d, settings["time"]))
+        varies, goals = GoalLowerer(self, settings["time"]).run()  # (lower_goals.py)
         self.reporter.raise_if_any()
         scene = ir.Scene(
             name=name, file=self.root_file, time=settings["time"], gravity=settings["gravity"],
@@ -74,7 +76,8 @@ class SceneLowerer:
             constraints=tuple(constraints), forces=tuple(forces), winds=tuple(winds), sounds=tuple(sounds),
             exclusions=tuple(exclusions), listener=settings["listener"], audio=settings["audio"],
             parameters=tuple(sorted((k, _plain(v.node)) for k, v in self.x.parameters.items())),
-            air_density=settings["air"], collides=tuple(collides), origins=setting_origins(self.x),
+            air_density=settings["air"], collides=tuple(collides), varies=varies, goals=goals,
+            origins=setting_origins(self.x),
         )
         self._confined_files(scene)
         return scene

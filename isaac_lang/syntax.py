@@ -19,7 +19,7 @@ from isaac_lang.vocabulary import property_names
 
 KEYWORDS = ("scene", "let", "include", "material", "body", "constraint", "kind", "force", "wind", "sound",
             "camera", "light", "solver", "exclude", "collide", "part", "use",
-            "for")
+            "for", "vary", "goal")
 
 # how the grammar's terminals read in an error message
 TOKEN_WORDS = {

@@ -22,6 +22,7 @@ from isaac_ir import ir
 from isaac_ir.diagnostics import warning_diagnostic
 
 from . import checks
+from .outputs import goals
 from .plan.extras import check_extras
 from .outputs import Recorder, write_json, write_npz
 from .outputs.outputset import OutputSet
@@ -94,8 +95,14 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
             if options.on_frame is not None:
                 options.on_frame(simulation, recorded)
 
+        states = {}  # the states at the goals' times (runtime/outputs/goals.py)
         try:
-            sim.run_frames(plan.frame_times, recorder, on_frame if options.progress or options.on_frame else None)
+            frame_call = on_frame if options.progress or options.on_frame else None
+            if scene.goals:
+                states = goals.run_with_goal_stops(sim, plan.frame_times, recorder, goals.goal_times(scene),
+                                                   frame_call)
+            else:
+                sim.run_frames(plan.frame_times, recorder, frame_call)
         except NumericalError as failure:
             error = failure
     energy0 = float(recorder.energy[0]) if recorder.count else sim.energy()  # the first frame's: the start
@@ -108,6 +115,9 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
         report["warnings"].append(checks.conflict_warning(conflict))
     report["checks"] = {"max_constraint_error": checks.constraint_check(report, options.max_constraint_error,
                                                                         conflict)}
+    if scene.goals:  # each goal a check: met or not (docs/goals.md)
+        report["goals"] = goals.evaluate_goals(scene, plan.names, states, sim.events)
+        report["checks"]["goals"] = goals.goals_check(report["goals"])
     return RunResult(sim, recorder, report, error, audio)
 
 
@@ -154,7 +164,7 @@ def run_scene(scene: ir.Scene, out: Path, options: RunOptions, scene_path: Path 
             f"{result.error.time:.6g} s is in {out / 'trajectory.npz'}"))
         return EXIT_SCENE
     _say_summary(scene, result.report, out, written, options)
-    if _broken_tolerance(where, result.report):
+    if _broken_tolerance(where, result.report) | _missed_goals(where, result.report):
         return EXIT_TOLERANCE
     return EXIT_SCENE if warnings and options.strict else EXIT_OK
 
@@ -235,6 +245,15 @@ def _broken_tolerance(where: str, report: dict) -> bool:
                "constraints that cannot all hold (two nails that disagree, a body tied to two places) keep their "
                "error: check the anchor points, or raise the limit with --max-constraint-error")
     return True
+
+
+def _missed_goals(where: str, report: dict) -> bool:
+    """Say so on stderr for each goal the run missed (report.json `goals`)."""
+    missed = [record for record in report.get("goals", ()) if not record["met"]]
+    for record in missed:
+        _say_error(where, f"goal {goals.describe_miss(record)}", record.get("source"),
+                   "the goal is checked on this run; `isaac fit` finds the values of the `vary`s that meet it")
+    return bool(missed)
 
 
 def run_report(sim: Simulation, recorder: Recorder, energy0: float, wall: float, error) -> dict:
