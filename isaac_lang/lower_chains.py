@@ -58,6 +58,10 @@ def lower_product(lowerer, tree, scope, ctx):
             raise lowerer.fail("cannot divide by a vector", node)
         if not divide and size and term.size:
             raise lowerer.fail("cannot multiply two vectors with `*`", node, "use dot(a, b) or cross(a, b)")
+        if divide and type(term.node) is E.Const and term.node.value == 0:
+            # `t / 0 s` is not folded (t varies), and would divide by zero at every step of the run
+            raise lowerer.fail("this divides by zero", node.children[1], "the divisor is a constant 0: "
+                               "is a unit or a `let` missing?")
         dim = U.combine(dim, term.dim, -1 if divide else +1)
         size = size or term.size
         terms.append((node, divide, term.node))

@@ -52,7 +52,7 @@ def golden_cases() -> list:
         Case("golden samples 1e12", {"s.isaac": GOLDEN_SCENE, toml: "[run]\nsamples = 1000000000000\n"}, update),
         Case("golden times 1e6 entries", {"s.isaac": GOLDEN_SCENE,
                                           toml: "[run]\ntimes = [" + ", ".join(["0.1"] * 1_000_000) + "]\n"}, update),
-        Case("golden until 1e300", {"s.isaac": GOLDEN_SCENE, toml: "[run]\nuntil = 1e300\n"}, update),
+        Case("golden until 1e300", {"s.isaac": GOLDEN_SCENE, toml: "[run]\nuntil = 1e300\n"}, update, expect="any"),
         Case("golden tolerance inf", {"s.isaac": GOLDEN_SCENE, toml: "[tolerance]\nposition = inf\n"}, update),
         Case("golden data a symlink to /proc/self/environ",
              {"s.isaac": GOLDEN_SCENE, "s.golden/ir.json": "{}", "s.golden/trajectory.json":
@@ -96,6 +96,9 @@ def mesh_and_number_cases() -> list:
             FLOOR, "body bob sphere { radius 5 cm  mass 1 kg  at (3, 1, 0) }", "constraint hang nail(bob @ (0, 0.1, 0))",
             "body ball sphere { radius 5 cm  mass 1 kg  at (0, -1, 0)  velocity (0, 1e300, 0) m/s }")},
              ["run", "SCENE"]),
+        Case("a ball under the floor beside an unrelated nail", {"s.isaac": scene(
+            FLOOR, "body bob sphere { radius 5 cm  mass 1 kg  at (3, 1, 0) }", "constraint hang nail(bob @ (0, 0.1, 0))",
+            "body ball sphere { radius 5 cm  mass 1 kg  at (0, -0.04, 0) }")}, ["run", "SCENE"], expect="any"),
         Case("gear ratio 3e8 in the viewer", {"s.isaac": scene(
             "body a cylinder { radius 1 m  length 1 cm  mass 1 kg }",
             "body b cylinder { radius 1 m  length 1 cm  mass 1 kg  at (3, 0, 0) }",
