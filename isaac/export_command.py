@@ -23,7 +23,9 @@ def load_trajectory(path: Path) -> dict:
 def saved_trajectory(scene, out: Path, given: Path | None = None) -> tuple:
     """(arrays, where they came from) of --trajectory or of this very scene's last run in out; (None, None)."""
     if given is not None:
-        return load_trajectory(given), str(given)
+        from isaac.trajectory_file import read_trajectory
+
+        return read_trajectory(given, scene), str(given)
     saved = out / "trajectory.npz"
     if saved.is_file() and (out / "ir.json").is_file():
         try:

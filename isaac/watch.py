@@ -21,6 +21,7 @@ The runtime is imported lazily (the front end never needs the solvers).
 from __future__ import annotations
 
 import dataclasses
+import os
 import sys
 import threading
 import time
@@ -53,7 +54,7 @@ class RecordingSources(SourceCache):
         super().add(name, text)
         if not name.startswith("--set"):
             path = Path(name)
-            self.files.add((path if path.is_absolute() else self.root / path).resolve())
+            self.files.add(_real(path if path.is_absolute() else self.root / path))
 
 
 @dataclass
@@ -414,7 +415,13 @@ def _saved_at(paths: set) -> float:
 def _named_files(scene, folder: Path) -> set:
     """Files the scene names besides its includes: meshes and surface textures."""
     names = [b.shape.file for b in scene.bodies if b.shape.file] + [m.texture for m in scene.materials if m.texture]
-    return {(folder / name).resolve() for name in names}
+    return {_real(folder / name) for name in names if "\0" not in name}
+
+
+def _real(path: Path) -> Path:
+    """The path with its links followed; a loop of links (refused by the load) stays as written, where
+    Path.resolve would raise."""
+    return Path(os.path.realpath(path))
 
 
 def _short(path: Path, folder: Path) -> str:

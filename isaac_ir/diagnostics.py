@@ -206,5 +206,5 @@ def display_path(path: Path, root: Path | None) -> str:
     """How a file is named in diagnostics and the IR: relative to the scene's folder when it is inside it."""
     try:
         return path.resolve().relative_to(root.resolve()).as_posix() if root else str(path)
-    except ValueError:
+    except (ValueError, RuntimeError, OSError):  # outside the folder; a NUL byte; a loop of symbolic links
         return str(path)

@@ -54,12 +54,12 @@ class Confinement:
 
     @classmethod
     def for_scene(cls, folder, include_path=()) -> "Confinement":
-        return cls(tuple(dict.fromkeys(_real(Path(f)) for f in (folder, *include_path))))
+        return cls(tuple(dict.fromkeys(real_path(Path(f)) for f in (folder, *include_path))))
 
     def allowed(self, path: Path, anywhere: bool = False) -> Path:
         """The real path of `path` when a scene may read it (it need not exist yet); FileRefused when not.
         anywhere: outside the scene's folders too (only the system trees are refused)."""
-        real = _real(path)
+        real = real_path(path)
         if not anywhere and not any(_inside(real, root) for root in self.roots):
             raise FileRefused("it is outside the scene's folder", WHERE_HINT)
         if any(_inside(real, tree) for tree in SYSTEM_TREES):
@@ -73,6 +73,8 @@ class Confinement:
             info = os.stat(real)
         except FileNotFoundError:
             raise FileRefused(MISSING) from None
+        except ValueError:  # an embedded NUL byte
+            raise FileRefused("its name holds a NUL byte") from None
         except OSError as error:
             raise FileRefused(f"cannot look at it: {error.strerror or error}") from None
         _check_kind_and_size(info, limit)
@@ -87,8 +89,9 @@ class Confinement:
             return None if error.message == MISSING else error
         return None
 
-    def read_bytes(self, path: Path, limit: int) -> bytes:
-        return read_bounded(self.regular(path, limit), limit)
+    def read_bytes(self, path: Path, limit: int, anywhere: bool = False) -> bytes:
+        """anywhere: a file the user named on the command line (only the system trees are refused)."""
+        return read_bounded(self.regular(path, limit, anywhere), limit)
 
     def read_text(self, path: Path, limit: int = MAX_TEXT_BYTES) -> str:
         return decode_text(self.read_bytes(path, limit))
@@ -153,8 +156,19 @@ def _size(count: int) -> str:
     return f"{count / MiB:.3g} MiB" if count >= MiB else f"{count} bytes"
 
 
-def _real(path: Path) -> Path:
-    return Path(os.path.realpath(path))
+def real_path(path) -> Path:
+    """The path with every symbolic link followed; FileRefused for a name the system cannot hold (a NUL byte)
+    or a chain of links that never ends (a link to itself), which no later open could read either."""
+    try:
+        real = Path(os.path.realpath(path))
+    except ValueError:  # os.path refuses an embedded NUL byte
+        raise FileRefused("its name holds a NUL byte", "a file name is text without control characters") from None
+    # realpath leaves a loop of links as it found it: the link it stopped at still points somewhere
+    if os.path.islink(real):
+        raise FileRefused("it is a symbolic link that leads back to itself (a loop of links)")
+    return real
+
+
 
 
 def _inside(path: Path, folder: Path) -> bool:

@@ -115,6 +115,7 @@ def read_obj(text: str) -> tuple:
                 ids = [int(p.split("/")[0]) for p in parts[1:]]
                 if len(ids) < 3:
                     raise ValueError("a face needs three vertices")
+                _check_face_indices(ids)
                 ids = [i - 1 if i > 0 else len(vertices) + i for i in ids]
                 faces.extend([ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1))
         except ValueError as error:
@@ -122,6 +123,16 @@ def read_obj(text: str) -> tuple:
         if len(vertices) > MAX_MESH_ITEMS or len(faces) > MAX_MESH_ITEMS:
             break  # validate() says so; no need to read the rest
     return np.asarray(vertices, float).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3)
+
+
+def _check_face_indices(ids: list) -> None:
+    """An index no mesh can have is refused as it is read: beyond MAX_MESH_ITEMS (either sign) it names no
+    vertex, and beyond 2**63 it would not fit the index array at all."""
+    for index in ids:
+        if abs(index) > MAX_MESH_ITEMS:
+            raise ValueError(f"face index {index:.6g} is beyond the {MAX_MESH_ITEMS} vertices a mesh may have"
+                             if abs(index) > 1e15 else
+                             f"face index {index} is beyond the {MAX_MESH_ITEMS} vertices a mesh may have")
 
 
 def read_stl(data: bytes) -> tuple:

@@ -13,7 +13,7 @@ from lark import Tree
 from isaac_ir import expr as E
 from isaac_ir import units as U
 from isaac_ir.diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean, display_path
-from isaac_ir.files import BadEncoding, Confinement, FileRefused
+from isaac_ir.files import BadEncoding, Confinement, FileRefused, real_path
 from isaac_lang.lower_expr import CONTEXTS, FIXED, BodyRef, ExprContext, ExprLowerer, Scope, Typed, ref_name, interpolate_name
 from isaac_lang.syntax import parse_text
 
@@ -77,8 +77,12 @@ class Expander:
     # -- files --------------------------------------------------------------------------------------------
 
     def expand_file(self, path: Path, scope: Scope, depth: int = 0, at: SourcePos | None = None) -> None:
-        resolved = path.resolve()
         name = display_path(path, self.root)
+        try:
+            resolved = real_path(path)
+        except FileRefused as error:  # a NUL byte in the name, a link to itself: nothing to open
+            self.reporter.error(f"cannot read `{name}`: {error.message}", at, error.hint)
+            return
         if resolved in self.include_stack:
             chain = " -> ".join(display_path(p, self.root) for p in self.include_stack + [resolved])
             self.reporter.error(f"include cycle: {chain}", at, "remove one of the includes")

@@ -212,8 +212,21 @@ class SceneLowerer:
             props.scalar("poisson", U.DIMENSIONLESS, 0.3), props.scalar("loss", U.DIMENSIONLESS), rayleigh,
             props.scalar("roughness", U.LENGTH, 1e-5), props.string("texture"), str(decl.lowerer.pos(decl.tree)),
         )
+        self._sound_coefficients(material, props)
         self.materials[decl.name] = material
         return material
+
+    def _sound_coefficients(self, material: ir.Material, props: Props) -> None:
+        """The moduli an impact's sound divides by (the contact duration, the wave speeds): checked here, where
+        they are written, not as a division by zero in the middle of a run."""
+        self._positive(material.young, "young", props)
+        if not -1.0 < material.poisson < 0.5:
+            raise props.lowerer.fail(f"`poisson` must be above -1 and below 0.5, got {material.poisson:g}",
+                                     props.node("poisson"), "about 0.3 for metals, 0.5 would be incompressible")
+        for name in ("loss", "roughness"):
+            value = getattr(material, name)
+            if value is not None and not value >= 0.0:
+                raise props.lowerer.fail(f"`{name}` must be 0 or more, got {value:g}", props.node(name))
 
     def _contact_coefficients(self, friction: float, restitution: float, props: Props) -> None:
         """Restitution above 1 makes energy at each bounce, below 0 lets it go through; friction below 0 pushes."""

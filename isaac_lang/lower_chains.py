@@ -61,8 +61,20 @@ def lower_product(lowerer, tree, scope, ctx):
         dim = U.combine(dim, term.dim, -1 if divide else +1)
         size = size or term.size
         terms.append((node, divide, term.node))
+    _check_divisors(lowerer, first.node, terms)
     build = {False: E.mul, True: _divide}
     return _typed(lowerer, _fold_chain(lowerer, first.node, terms, build, E.mul, tree), dim)
+
+
+def _check_divisors(lowerer, first, terms: list) -> None:
+    """A constant 0 divisor in a chain that varies (`t / 0 s`): not folded like `1 / 0`, it would divide by zero
+    at every step of the run; refused at the divisor."""
+    if all(type(node) is E.Const for node in [first] + [term for _, _, term in terms]):
+        return  # folded now: the fold reports it as a value that cannot be computed
+    for node, divide, term in terms:
+        if divide and type(term) is E.Const and term.value == 0:
+            raise lowerer.fail("this divides by zero", node.children[1], "the divisor is a constant 0: "
+                               "is a unit or a `let` missing?")
 
 
 def lower_negation(lowerer, tree, scope, ctx):

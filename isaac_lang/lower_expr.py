@@ -379,6 +379,9 @@ class ExprLowerer:
             raise self.fail("key times must increase", tree)
         if len({len(v) if isinstance(v, tuple) else 0 for v in values}) != 1:
             raise self.fail("all keys must have values of the same size", tree)
+        if not _interpolable(times, values):
+            raise self.fail("these keys change too fast to interpolate: a slope between two keys overflows", tree,
+                            "keep the values and their changes per second well below 1e300")
         return Typed(E.Keys(interp, tuple(times), tuple(values)), dim)
 
     # -- slots --------------------------------------------------------------------------------------------
@@ -477,6 +480,19 @@ def is_table(node: E.Expr) -> bool:
     """A constant whose rows are vectors (`modes`), which no vector slot takes."""
     return type(node) is E.Const and type(node.value) is tuple and bool(node.value) \
         and type(node.value[0]) is tuple
+
+
+def _interpolable(times: list, values: list) -> bool:
+    """The slopes between keys and their changes (what a cubic spline's coefficients are made of) are finite,
+    with room to spare (a factor 1000): keys of 1e308 and -1e308 a second apart are not."""
+    import numpy as np
+
+    with np.errstate(all="ignore"):
+        gaps = np.diff(np.asarray(times, float))
+        points = np.asarray(values, float).reshape(len(times), -1)
+        slopes = np.diff(points, axis=0) / gaps[:, None]
+        bends = np.diff(slopes, axis=0) / gaps[1:, None] if len(gaps) > 1 else slopes[:0]
+        return bool(np.all(np.isfinite(slopes * 1e3)) and np.all(np.isfinite(bends * 1e3)))
 
 
 def _finite(value) -> bool:

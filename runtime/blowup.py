@@ -49,12 +49,51 @@ class NumericalError(Exception):
 
 def failure(sim) -> NumericalError:
     """The blow-up the step loop stopped on (sim._status), measured: what ran away, in its units, and what
-    acted on it."""
+    acted on it. It never fails, and always names a body or a constraint with the position of its declaration
+    (a contact's row names no declaration: the fastest body is named with it)."""
+    try:
+        found = _measured_failure(sim)
+    except Exception:  # the diagnosis of a state that is already broken: say the least that is sure
+        found = _plain_failure(sim)
+    return found if found.source else _with_fastest_body(sim, found)
+
+
+def _measured_failure(sim) -> NumericalError:
     code, step, which = (int(v) for v in sim._status[:3])
     if code == RUNAWAY_BODY:
         return body_failure(sim, which)
     error, _ = sim.constraint_errors()
     return constraint_failure(sim, which, error)
+
+
+def _plain_failure(sim) -> NumericalError:
+    code, _, which = (int(v) for v in sim._status[:3])
+    bodies = sim.plan.scene.bodies
+    if code == RUNAWAY_BODY and 0 <= which < len(bodies):
+        return NumericalError(sim.state.t, sim.state.steps, f"body `{bodies[which].name}`", "it ran away",
+                              bodies[which].source)
+    return NumericalError(sim.state.t, sim.state.steps, "a constraint or contact", "its error grew past any joint's")
+
+
+def _fastest_body(sim) -> int | None:
+    """The index of the body moving fastest (a non-finite speed first), or None without a moving body."""
+    y = np.asarray(sim.state.y, float)
+    if len(y) == 0:
+        return None
+    speed = np.abs(y[:, D.V]).max(axis=1) + np.abs(y[:, D.W]).max(axis=1)
+    return int(np.argmax(np.where(np.isfinite(speed), speed, np.inf)))
+
+
+def _with_fastest_body(sim, found: NumericalError) -> NumericalError:
+    try:
+        b = _fastest_body(sim)
+        body = sim.plan.scene.bodies[b] if b is not None else None
+    except Exception:  # (the same reason as in failure)
+        body = None
+    if body is None:
+        return found
+    return NumericalError(found.time, found.step, found.culprit, f"{found.detail}; the fastest body: `{body.name}`",
+                          body.source, found.hint)
 
 
 def body_failure(sim, b: int) -> NumericalError:

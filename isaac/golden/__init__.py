@@ -17,7 +17,7 @@ from pathlib import Path
 from isaac_ir.diagnostics import SourceCache
 from isaac.golden.compare import Finding, compare
 from isaac.golden.record import make_record
-from isaac.golden.settings import load_settings, settings_path
+from isaac.golden.settings import check_sample_count, load_settings, settings_path
 from isaac.golden.store import golden_folder, has_golden, read_golden, write_golden
 
 __all__ = ["Outcome", "check_scene", "golden_folder", "has_golden", "Finding"]
@@ -71,6 +71,7 @@ def check_scene(path, update: bool = False, overrides: dict | None = None,
     if golden is None and not update:
         return Outcome(path, "missing")
     loaded = load_scene(path, settings.overrides, sources=sources)
+    check_sample_count(settings, loaded.scene.time.start, loaded.scene.time.end)
     times = None if update or "trajectory" not in golden else golden["trajectory"]["time"]
     record = make_record(loaded.scene, path.parent, settings, times)
     findings = compare(golden, record.sections, settings.tolerance, record.energy_scale) if golden else []

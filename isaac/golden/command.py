@@ -10,6 +10,8 @@ import sys
 from pathlib import Path
 
 from isaac_ir.diagnostics import Diagnostic, SceneError, SourceCache
+from isaac.golden.store import golden_folder
+from isaac.writable import check_output_folder
 
 EXIT_OK, EXIT_SCENE, EXIT_MISMATCH = 0, 2, 3
 
@@ -25,6 +27,8 @@ def run_golden(scenes: list, update: bool, overrides: dict, verbosity: int, form
         try:
             if not path.is_file():
                 raise SceneError([Diagnostic(f"no such scene file: {path}", None)])
+            if update:  # refused before the run, as run and export refuse their --out
+                check_output_folder(golden_folder(path), "--update: the golden folder")
             outcome = check_scene(path, update=update, overrides=overrides, sources=sources)
         except SceneError as error:
             print(format_error(error, str(path), sources), file=sys.stderr)

@@ -17,12 +17,14 @@ error (`swing.golden.toml:7:1: error: unknown tolerance ...`), exit 2.
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from isaac_ir import units as U
 from isaac_ir.diagnostics import Diagnostic, SceneError, SourceCache, SourcePos, did_you_mean
+from isaac_ir.files import BadEncoding, Confinement, FileRefused
 
 # quantity -> (default, dimension, what it bounds). Defaults are far above the rounding differences of a run
 # repeated on another machine (1e-12 .. 1e-9 in a scene that is not chaotic) and below what anyone would see
@@ -46,6 +48,9 @@ TOLERANCES = {
 DEFAULT_SAMPLES = 101
 # ... and fewer for big scenes, so that a golden stays small: at most this many body-samples
 MAX_BODY_SAMPLES = 20_000
+# the most trajectory samples a golden may keep (`times`, `samples`, or the scene's span over `every`): far more
+# than a review can read, and a few MiB of JSON
+MAX_GOLDEN_SAMPLES = 100_000
 RUN_KEYS = ("until", "every", "times", "samples", "set", "solver", "step")
 _QUANTITY = re.compile(r"\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z][A-Za-z0-9*/^-]*)?\s*")
 
@@ -63,6 +68,7 @@ class Settings:
     step: float | None = None
     tolerance: dict = field(default_factory=lambda: {k: v[0] for k, v in TOLERANCES.items()})
     file: Path | None = None  # the TOML read, if any
+    text: str = ""  # its text (for the position of a value found wrong later, once the scene's span is known)
 
     def with_overrides(self, overrides: dict) -> "Settings":
         """The command line's --set on top of the file's."""
@@ -81,16 +87,32 @@ def settings_path(scene: Path) -> Path:
 def load_settings(scene: Path, sources: SourceCache | None = None) -> Settings:
     """The defaults, with the scene's TOML on top when there is one. SceneError for a mistake in it."""
     path = settings_path(scene)
-    if not path.is_file():
+    if not os.path.lexists(path):
         return Settings()
-    text = path.read_text(encoding="utf-8")
     # named like the scene's own files in diagnostics: relative to the scene's folder (the CLI prints it as reached)
     name = Path(path.name)
+    text = read_beside_scene(path, Path(scene).parent, name, sources)
+    settings = _read(_parse_toml(text, name), text, name)
+    settings.file, settings.text = path, text
+    return settings
+
+
+def read_beside_scene(path: Path, folder: Path, name: Path, sources: SourceCache | None) -> str:
+    """The text of a file beside a scene, read as the scene's includes are (isaac_ir/files.py: its folder tree,
+    a regular file, bounded, UTF-8); a refusal is an error at the file's first line that shows nothing of it."""
+    try:
+        text = Confinement.for_scene(folder).read_text(path)
+    except BadEncoding as error:
+        if sources is not None:  # a file inside the scene's tree: its line may be shown
+            sources.add(str(name), error.text)
+        raise SceneError([Diagnostic(f"cannot read `{name}`: {error.message}", SourcePos(str(name), error.line,
+                                                                                        error.col), error.hint)])
+    except FileRefused as error:
+        raise SceneError([Diagnostic(f"cannot read `{name}`: {error.message}", SourcePos(str(name), 1, 1),
+                                     error.hint)])
     if sources is not None:
         sources.add(str(name), text)
-    settings = _read(_parse_toml(text, name), text, name)
-    settings.file = path
-    return settings
+    return text
 
 
 def _parse_toml(text: str, path: Path) -> dict:
@@ -138,10 +160,12 @@ def _run_value(settings: Settings, key: str, value) -> None:
     elif key == "times":
         if not isinstance(value, list) or not value:
             raise ValueError("`times` is a list of times, e.g. times = [\"0.5 s\", \"1 s\"]")
+        if len(value) > MAX_GOLDEN_SAMPLES:
+            raise ValueError(f"`times` lists {len(value)} times, more than the {MAX_GOLDEN_SAMPLES} a golden keeps")
         settings.times = tuple(sorted(quantity(v, U.TIME, key) for v in value))
     elif key == "samples":
-        if not isinstance(value, int) or isinstance(value, bool) or value < 2:
-            raise ValueError("`samples` is a whole number of at least 2")
+        if not isinstance(value, int) or isinstance(value, bool) or not 2 <= value <= MAX_GOLDEN_SAMPLES:
+            raise ValueError(f"`samples` is a whole number from 2 to {MAX_GOLDEN_SAMPLES}")
         settings.samples = value
     elif key == "set":
         if not isinstance(value, dict):
@@ -156,6 +180,20 @@ def _run_value(settings: Settings, key: str, value) -> None:
     else:
         raise ValueError(f"unknown run option `{key}`\n" + (did_you_mean(key, RUN_KEYS) or
                                                            "the run options: " + ", ".join(RUN_KEYS)))
+
+
+def check_sample_count(settings: Settings, start: float, end: float) -> None:
+    """`every` against the span the run covers (the scene's, or up to `until`): at most MAX_GOLDEN_SAMPLES
+    samples, refused at the line that writes it before anything runs."""
+    if settings.every is None:
+        return
+    span = max(0.0, (min(end, settings.until) if settings.until is not None else end) - start)
+    count = span / settings.every + 1
+    if count > MAX_GOLDEN_SAMPLES:
+        name = Path(settings.file.name) if settings.file else Path("golden.toml")
+        raise SceneError([_problem(f"`every = {settings.every:g} s` keeps {count:.3g} samples of a {span:g} s run, "
+                                   f"more than the {MAX_GOLDEN_SAMPLES} a golden may keep", settings.text, name,
+                                   "every", f"every = \"{span / (MAX_GOLDEN_SAMPLES - 1):.3g} s\" or more")])
 
 
 def _tolerance_value(settings: Settings, key: str, value) -> None:

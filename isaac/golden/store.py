@@ -31,12 +31,34 @@ def read_golden(scene: Path) -> dict:
     out = {}
     for name in SECTIONS:
         path = folder / f"{name}.json"
-        if path.is_file():
-            try:
-                out[name] = json.loads(path.read_text(encoding="utf-8"))
-            except (OSError, ValueError) as error:
-                raise ValueError(f"cannot read the golden file {path}: {error}") from None
+        if os.path.lexists(path):
+            out[name] = _read_section(path, Path(scene).parent)
     return out
+
+
+# bytes: the largest golden file read (a golden keeps at most 20,000 body-samples: a few MiB)
+MAX_GOLDEN_BYTES = 64 << 20
+
+
+def _read_section(path: Path, folder: Path):
+    """One golden file, read as a scene's files are (isaac_ir/files.py) and parsed as JSON; a SceneError at
+    the file's line and column that quotes nothing of it."""
+    from isaac_ir.diagnostics import Diagnostic, SceneError, SourcePos
+    from isaac_ir.files import Confinement, FileRefused
+
+    name = f"{path.parent.name}/{path.name}"
+    hint = f"record the goldens again with `isaac golden {path.parent.parent / (path.parent.stem + '.isaac')} --update`"
+    try:
+        return json.loads(Confinement.for_scene(folder).read_text(path, MAX_GOLDEN_BYTES))
+    except FileRefused as error:
+        raise SceneError([Diagnostic(f"cannot read the golden file: {error.message}", SourcePos(name, 1, 1),
+                                     error.hint or hint)]) from None
+    except json.JSONDecodeError as error:
+        raise SceneError([Diagnostic(f"cannot read the golden file: {error.msg}",
+                                     SourcePos(name, error.lineno, error.colno), hint)]) from None
+    except (RecursionError, ValueError) as error:  # nesting too deep for the parser; a number too long
+        raise SceneError([Diagnostic(f"cannot read the golden file: {str(error)[:200]}", SourcePos(name, 1, 1),
+                                     hint)]) from None
 
 
 def write_golden(scene: Path, sections: dict) -> list:

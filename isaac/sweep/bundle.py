@@ -78,7 +78,7 @@ def _candidates(name: str, here: Path, scene_folder: Path) -> list:
             path = (folder / name).resolve()
             if path.is_file() and path not in out:
                 out.append(path)
-        except OSError:  # a name too long or otherwise impossible for the file system: not a file
+        except (OSError, RuntimeError, ValueError):  # too long, a loop of links, a NUL byte: not a file
             continue
     return out
 

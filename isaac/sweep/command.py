@@ -6,11 +6,13 @@ a numerical blow-up), each listed on stderr and in the table; 3 every run finish
 """
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 from isaac.sweep.grid import draws, parse_axis, product, usage
 from isaac.sweep.task import FAILED
+from isaac.writable import check_output_folder
 
 EXIT_OK, EXIT_BUG, EXIT_SCENE, EXIT_TOLERANCE = 0, 1, 2, 3
 
@@ -27,11 +29,48 @@ def run_command(args, verbosity: int = 0) -> int:
     if args.workers is not None and args.scheduler:
         raise usage("--workers N is the size of the local cluster: not with --scheduler",
                     "the cluster's own workers run the variants: start as many as you want with `dask worker`")
+    check_workers(args.workers)
+    if args.scheduler:
+        check_scheduler_address(args.scheduler)
     out = Path(args.out) if args.out else Path("out") / f"{scene.stem}-sweep"
+    check_output_folder(out, "--out")  # before the first variant runs, not after the last
     table = sweep(scene, variants, out=out, keep=args.keep, until=args.until, solver=args.solver,
                   step=args.step, scheduler=args.scheduler, workers=args.workers,
                   progress=verbosity >= 0 and sys.stderr.isatty())
     return summarize(table, scene.stem, out, args.keep, verbosity)
+
+
+# the most processes of a local cluster: more than the cores only share them, and each holds file handles
+MAX_WORKERS_PER_CORE = 4
+# the schemes of a Dask scheduler's address (distributed.comm's registry)
+SCHEDULER_SCHEMES = ("tcp", "tls", "inproc", "ucx", "ws", "wss")
+
+
+def check_workers(workers: int | None) -> None:
+    limit = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+    if workers is not None and workers > limit:
+        raise usage(f"--workers {workers}: more than the {limit} processes this machine can use "
+                    f"({MAX_WORKERS_PER_CORE} per core)",
+                    "leave --workers out for one per core, or start a cluster of your own and give --scheduler")
+
+
+def check_scheduler_address(address: str) -> None:
+    """--scheduler: SCHEME://HOST:PORT (or HOST:PORT, tcp) with a known scheme and a port, read before
+    anything connects."""
+    from urllib.parse import urlsplit
+
+    example = "e.g. tcp://10.0.0.5:8786 (what `dask scheduler` prints)"
+    text = address if "://" in address else f"tcp://{address}"
+    try:
+        parts = urlsplit(text)
+        port = parts.port
+    except ValueError as error:
+        raise usage(f"--scheduler `{address}`: not an address ({error})", example) from None
+    if parts.scheme not in SCHEDULER_SCHEMES:
+        raise usage(f"--scheduler `{address}`: unknown scheme `{parts.scheme}`",
+                    f"the schemes: {', '.join(SCHEDULER_SCHEMES)}; {example}")
+    if parts.scheme != "inproc" and (not parts.hostname or port is None or port == 0):
+        raise usage(f"--scheduler `{address}`: an address needs a host and a port", example)
 
 
 def command_variants(specs: list, random: int | None, seed: int) -> list:

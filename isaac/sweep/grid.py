@@ -12,6 +12,7 @@ exactly what `isaac run --set NAME=VALUE` would run; `si_value` gives its number
 from __future__ import annotations
 
 import itertools
+import math
 import re
 from dataclasses import dataclass
 
@@ -20,6 +21,9 @@ from lark.exceptions import UnexpectedInput
 from isaac_ir.diagnostics import Diagnostic, Reporter, SceneError
 
 # a range `A..B` or `A..B/N`: N is a whole number after the last slash (so B itself cannot end in `/integer`)
+# the most variants one sweep may run (docs/budgets.md): at a second each, almost three hours on one core; a
+# count above it is refused before anything is expanded or started
+MAX_VARIANTS = 10_000
 _RANGE = re.compile(r"^(?P<low>.+?)\.\.(?P<high>.+?)(?:/\s*(?P<count>\d+))?\s*$")
 # a number and an optional unit, as a range's end is usually written (`10deg`, `2.5 m`, `-3`)
 _QUANTITY = re.compile(r"^\s*(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(?P<unit>[A-Za-z][\w/]*)?\s*$")
@@ -75,6 +79,7 @@ def _expand_item(name: str, text: str) -> list:
     count = int(match["count"])
     if count < 1:
         raise usage(f"--set {name}: `{text}` asks for {count} values", "the count after `/` is at least 1")
+    check_variant_count(count, f"--set {name}: `{text}`")
     low, high, unit, scale = si_range(name, match["low"], match["high"])
     import numpy as np
 
@@ -151,12 +156,20 @@ def format_value(number: float, unit: str) -> str:
     return f"{number!r} {unit}" if unit else repr(number)
 
 
+def check_variant_count(count: int, what: str) -> None:
+    """A sweep's size bounded before its variants are made (a product of three lists of 1000 is 10^9)."""
+    if count > MAX_VARIANTS:
+        raise usage(f"{what} make {count:,} variants, more than the {MAX_VARIANTS:,} a sweep may run",
+                    "sweep fewer values, or split the sweep into several with --out of their own")
+
+
 def product(axes: list) -> list:
     """Every combination of the axes' values: a list of {name: text}, the first axis varying slowest."""
     for axis in axes:
         if axis.continuous:
             raise usage(f"--set {axis.name}: the range `{axis.low}..{axis.high}` needs a count",
                         f"e.g. {axis.name}={axis.low}..{axis.high}/10, or draw from it with --random N --seed S")
+    check_variant_count(math.prod(len(axis.values) for axis in axes), "the --set values")
     names = [axis.name for axis in axes]
     return [dict(zip(names, combo)) for combo in itertools.product(*(axis.values for axis in axes))]
 
@@ -168,6 +181,7 @@ def draws(axes: list, count: int, seed: int) -> list:
 
     if count < 1:
         raise usage(f"--random {count}: the number of draws is at least 1")
+    check_variant_count(count, f"--random {count}")
     rng = np.random.default_rng(seed)
     ranges = {axis.name: si_range(axis.name, axis.low, axis.high) for axis in axes if axis.continuous}
     variants = []

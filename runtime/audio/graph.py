@@ -349,7 +349,16 @@ class SoundCompiler:
     def _fn_delay(self, args, strength):
         time = args.positional[1] if len(args.positional) > 1 else E.Const(0.0)
         longest = time.value if isinstance(time, E.Const) else args.number("max", DEFAULT_DELAY_LIMIT)
+        self._check_delay(float(longest))
         return DelayLine(args.node(0, strength), args.node(1), float(longest), self.fs)
+
+    def _check_delay(self, longest: float) -> None:
+        """A delay line holds `longest` seconds of samples: no longer than the scene (what comes out after it is
+        never heard), so that a delay of 1e9 s is refused here instead of asking for 321 TiB."""
+        span = self.scene.time.end - self.scene.time.start
+        if not 0.0 <= longest <= span + 1.0:
+            raise self.fail(f"a delay of {longest:g} s: a delay is between 0 s and the scene's length "
+                            f"({span:g} s)", "a delay longer than the scene is never heard")
 
     def _fn_pan(self, args, strength):
         return Pan(args.node(0, strength), args.node(1 if len(args.positional) > 1 else "position", default=0.0))

@@ -23,6 +23,9 @@ from ..export import geometry
 
 # teeth on the smaller gear of a pair (the other gets as many more as its radius is larger: equal pitch)
 SMALL_GEAR_TEETH = 12
+# teeth on the larger gear of a pair at most (a ratio of 3e8 would draw 3.6e9 teeth): past it the pitch grows, so
+# the drawing stays a few thousand triangles whatever the ratio (the motion does not use the teeth)
+MAX_GEAR_TEETH = 600
 # below this distance (m) an anchor lies on its body's surface: no wire is drawn to it
 ON_SURFACE = 1e-4
 
@@ -109,6 +112,7 @@ def gear_teeth(scene) -> dict:
             if None in radii or min(abs(r) for r in radii) <= 0:  # a radius that follows t: no teeth drawn
                 continue
             pitch = 2.0 * math.pi * min(abs(r) for r in radii) / SMALL_GEAR_TEETH
+            pitch = max(pitch, 2.0 * math.pi * max(abs(r) for r in radii) / MAX_GEAR_TEETH)
             for body, axis, radius in zip(term.bodies, ("axis_a", "axis_b"), radii):
                 teeth = max(6, int(round(2.0 * math.pi * abs(radius) / pitch)))
                 out.setdefault(body, []).append((_vector(term.param(axis)), abs(radius), teeth))

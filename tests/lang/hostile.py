@@ -270,9 +270,10 @@ def run_case(case: Case, root: Path, timeout: float = TIMEOUT) -> Outcome:
     args = [str(path) if a == "SCENE" else a for a in case.args]
     if args[0] == "run" and "--out" not in args:
         args += ["--out", str(root / "out")]
-    if args[0] == "run":
+    if args[0] == "run" and "--viewer" not in args:
         args += ["--no-viewer"]
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    # the secret in the environment too: a leak of /proc/self/environ shows it
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2]), "ISAAC_HOSTILE_SECRET": SECRET}
     started = time.monotonic()
     try:
         done = subprocess.run(ISAAC + args, cwd=path.parent, capture_output=True, text=True, errors="replace",
