@@ -202,6 +202,14 @@ def warning_diagnostic(text: str, severity: str = "warning") -> Diagnostic:
     return Diagnostic(rest if pos is not None else text, pos, hint=hint if sep_hint else None, severity=severity)
 
 
+def counted(count: int, noun: str) -> str:
+    """`1 body`, `2 bodies`, `1 pair`, `3 pairs`: a count with its noun in the right number."""
+    if count == 1:
+        return f"1 {noun}"
+    plural = noun[:-1] + "ies" if noun.endswith("y") and noun[-2:-1] not in "aeiou" else noun + "s"
+    return f"{count} {plural}"
+
+
 def did_you_mean(word: str, candidates, what: str = "") -> str | None:
     """A hint naming the closest candidate, or None when nothing is close."""
     close = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
