@@ -27,13 +27,13 @@ from pathlib import Path
 from isaac import installed_version
 from isaac import options as opt
 from isaac_runtime.checks import DEFAULT_MAX_CONSTRAINT_ERROR
-from isaac_ir.diagnostics import SceneError, SourceCache
+from isaac_ir.diagnostics import SceneError, SourceCache, counted
 
 EXIT_OK, EXIT_BUG, EXIT_SCENE, EXIT_TOLERANCE = 0, 1, 2, 3
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="isaac", description="Physically based motion and sound, as text.")
+    parser = SuggestingParser(prog="isaac", description="Physically based motion and sound, as text.")
     parser.add_argument("--version", action=_VersionAction)
     verbosity_options(parser, 0)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -125,6 +125,61 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class SuggestingParser(argparse.ArgumentParser):
+    """argparse's parser whose errors end with a hint: the command or option meant (`isaac rnu` -> `run`)."""
+
+    def error(self, message: str):
+        self.print_usage(sys.stderr)
+        hint = _closest_word(message, self)
+        print(f"{self.prog}: error: {message}" + (f"\nhint: {hint}" if hint else ""), file=sys.stderr)
+        self.exit(EXIT_SCENE)
+
+
+def _closest_word(message: str, parser: argparse.ArgumentParser) -> str | None:
+    """`did you mean ...` for argparse's "invalid choice: 'rnu'" and "unrecognized arguments: --unti"."""
+    import difflib
+    import re
+
+    choice = re.search(r"invalid choice: '([^']*)'", message)
+    if choice:
+        choices = [c for action in parser._actions if action.choices for c in action.choices]
+        close = difflib.get_close_matches(choice.group(1), [str(c) for c in choices], n=1, cutoff=0.5)
+        return f"did you mean `{close[0]}`?" if close else None
+    unknown = re.search(r"unrecognized arguments: (\S+)", message)
+    if unknown:
+        word = unknown.group(1).split("=")[0]
+        options = [o for action in _all_actions(parser) for o in action.option_strings]
+        close = difflib.get_close_matches(word, options, n=1, cutoff=0.6)
+        return f"did you mean `{close[0]}`?" if close else "see `isaac COMMAND --help` for the options"
+    return None
+
+
+def _all_actions(parser: argparse.ArgumentParser) -> list:
+    """The parser's actions and those of its commands' parsers."""
+    actions = list(parser._actions)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                actions += sub._actions
+    return actions
+
+
+def complete_scene_names(args) -> None:
+    """A scene named without its extension is found: `isaac run swing` runs swing.isaac when swing does not
+    exist."""
+    if isinstance(getattr(args, "scene", None), str):
+        args.scene = _with_extension(args.scene)
+    if isinstance(getattr(args, "scenes", None), list):
+        args.scenes = [_with_extension(s) for s in args.scenes]
+
+
+def _with_extension(name: str) -> str:
+    path = Path(name)
+    if not path.exists() and path.suffix != ".isaac" and path.with_name(path.name + ".isaac").is_file():
+        return name + ".isaac"
+    return name
+
+
 # benchmarks/suite.py SECTIONS, repeated here so that building the parser imports nothing
 BENCH_SECTIONS = ("work_precision", "scaling", "stress", "specialization", "audio", "profile", "contact")
 
@@ -187,6 +242,7 @@ def main(argv=None) -> int:
         args = build_parser().parse_args(opt.join_time_units(list(sys.argv[1:] if argv is None else argv)))
     except SystemExit as done:  # --help, --version (0), a bad option value (2): argparse has said why
         return done.code if isinstance(done.code, int) else (0 if done.code is None else EXIT_SCENE)
+    complete_scene_names(args)
     sources = SourceCache()
     try:
         with opt.budget_environment(getattr(args, "budget", None)):
@@ -195,13 +251,22 @@ def main(argv=None) -> int:
         print(_as_written(error, getattr(args, "scene", ""), sources).format(sources), file=sys.stderr)
         code = EXIT_SCENE
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        print(interrupted_message(args), file=sys.stderr)
         code = 130
     except BrokenPipeError:
         code = EXIT_OK
     except Exception:  # a bug in the tool, not in the scene
         code = _report_bug()
     return code
+
+
+def interrupted_message(args) -> str:
+    """What Ctrl-C leaves: a command writes its outputs into a staging folder swapped in only when complete."""
+    if args.command in ("run", "watch", "export", "live"):
+        out = getattr(args, "out", None) or default_out(args.scene)
+        return (f"interrupted: nothing of this run was written; the previous outputs in {out}/ were kept whole "
+                "(a run replaces them only once it has finished)")
+    return "interrupted"
 
 
 def _as_written(error: SceneError, scene: str, sources: SourceCache) -> SceneError:
@@ -289,7 +354,7 @@ def cmd_parse(args, sources) -> int:
 def cmd_check(args, sources) -> int:
     loaded = _load(args, sources)
     scene = loaded.scene
-    print(f"{args.scene}: ok ({len(scene.bodies)} bodies, {len(scene.constraints)} constraints)")
+    print(f"{args.scene}: ok ({counted(len(scene.bodies), 'body')}, {counted(len(scene.constraints), 'constraint')})")
     return EXIT_OK
 
 
@@ -329,8 +394,15 @@ def default_out(scene_path) -> Path:
 
 
 def _check_until(args, scene) -> None:
-    """--until must leave something to simulate: after the scene's start."""
+    """--until must leave something to simulate: after the scene's start. Past the scene's end, the run goes to
+    the end and says so."""
     until = getattr(args, "until", None)
+    if until is not None and until > scene.time.end:
+        print(f"isaac: warning: --until {until:g} s is past the scene's end ({scene.time.end:g} s): running to the "
+              f"end, {scene.time.end:g} s\nhint: to simulate longer, change the scene's `time` "
+              f"(e.g. `time {scene.time.start:g} s .. {until:g} s`)", file=sys.stderr)
+        args.until = None
+        return
     if until is not None and until <= scene.time.start:
         raise SceneError([_usage_diagnostic(f"--until {until:g} s is not after the scene's start "
                                             f"({scene.time.start:g} s): nothing to simulate")])

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from isaac.crash import internal_error
-from isaac_ir.diagnostics import Diagnostic, SceneError, SourceCache
+from isaac_ir.diagnostics import Diagnostic, SceneError, SourceCache, counted
 from isaac.watch_files import FileWatcher
 
 # seconds of stepping (after planning) before the first frames are shown: the motion has begun, the wait is short
@@ -197,7 +197,7 @@ class Watch:
         if self.server:
             self.server.set_status(state="running", message=f"result #{job.n}: starting", diagnostic=None)
         self.say(f"{what}: result #{job.n}: running {loaded.scene.name} "
-                 f"({len(loaded.scene.bodies)} bodies, {loaded.scene.time.start:g} s .. {loaded.scene.time.end:g} s)")
+                 f"({counted(len(loaded.scene.bodies), 'body')}, {loaded.scene.time.start:g} s .. {loaded.scene.time.end:g} s)")
         self.start_job(job)
 
     def say_warnings(self, warnings: list, sources=None) -> None:

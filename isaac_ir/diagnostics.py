@@ -138,6 +138,7 @@ class Reporter:
 
     def __init__(self):
         self.diagnostics: list[Diagnostic] = []
+        self.warnings: list[str] = []  # of the front end, as text (`warn`)
         self._at: dict = {}  # (file, line, col) -> index of the diagnostic reported there
         self._again: dict = {}  # index -> how many more times that place was reached (loop iterations, parts)
 
@@ -154,6 +155,13 @@ class Reporter:
             if where is not None:
                 self._at[where] = len(self.diagnostics)
             self.diagnostics.append(diagnostic)
+
+    def warn(self, message: str, pos: SourcePos | None, hint: str | None = None) -> None:
+        """A warning of the front end, kept as text (`file:line:col: message`, a last line `hint: ...`), once per
+        place in the source (a loop reaches it again)."""
+        text = (f"{pos}: " if pos is not None else "") + message + (f"\nhint: {hint}" if hint else "")
+        if text not in self.warnings:
+            self.warnings.append(text)
 
     def replace(self, index: int, diagnostic: Diagnostic) -> None:
         """Put a better diagnostic in the place of one already reported (the same position)."""
@@ -192,6 +200,14 @@ def warning_diagnostic(text: str, severity: str = "warning") -> Diagnostic:
     head, sep, rest = text.partition(": ")
     pos = SourcePos.parse(head) if sep else None
     return Diagnostic(rest if pos is not None else text, pos, hint=hint if sep_hint else None, severity=severity)
+
+
+def counted(count: int, noun: str) -> str:
+    """`1 body`, `2 bodies`, `1 pair`, `3 pairs`: a count with its noun in the right number."""
+    if count == 1:
+        return f"1 {noun}"
+    plural = noun[:-1] + "ies" if noun.endswith("y") and noun[-2:-1] not in "aeiou" else noun + "s"
+    return f"{count} {plural}"
 
 
 def did_you_mean(word: str, candidates, what: str = "") -> str | None:

@@ -98,6 +98,12 @@ EXAMPLE_UNIT = {
     INERTIA: "kg*m2",
 }
 
+# the SI unit a number without a unit is read in, as a writer would type it
+SI_UNIT = {**EXAMPLE_UNIT, ANGLE: "rad", PRESSURE: "Pa"}
+# another unit of the same quantity a writer often means, for hints
+OTHER_UNIT = {LENGTH: "cm", TIME: "ms", VELOCITY: "cm/s", ACCELERATION: "cm/s2", ANGLE: "deg",
+              ANGULAR_VELOCITY: "deg/s", MASS: "g"}
+
 _FACTOR = re.compile(r"([*/]?)([A-Za-z]+)\^?(-?[0-9])?")
 
 

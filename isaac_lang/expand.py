@@ -15,6 +15,7 @@ from isaac_ir import units as U
 from isaac_ir.diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean, display_path
 from isaac_ir.files import BadEncoding, Confinement, FileRefused, real_path
 from isaac_lang.lower_expr import CONTEXTS, FIXED, BodyRef, ExprContext, ExprLowerer, Scope, Typed, ref_name, interpolate_name
+from isaac_lang.overrides import override_in_unit_written
 from isaac_lang.syntax import parse_text
 
 DECLARATIONS = ("material", "body", "constraint", "force", "wind", "sound", "camera", "light", "exclude",
@@ -64,6 +65,7 @@ class Expander:
         self.sources = sources
         self.reporter = reporter
         self.overrides = overrides  # name -> Typed
+        self.override_texts: dict = {}  # name -> the VALUE of `--set NAME=VALUE` as typed
         self.limits = limits
         self.out = Expansion(folder=root)
         self.include_stack: list[Path] = []
@@ -174,8 +176,10 @@ class Expander:
         name_token, value_tree = item.children
         name = str(name_token)
         if top and not scope.prefix and name in self.overrides:
-            value = self.overrides[name]
             self.out.used_overrides.add(name)
+            written = lowerer.lower(value_tree, scope, CONTEXTS[True, True])
+            value = override_in_unit_written(name, self.overrides[name], written, value_tree, lowerer,
+                                             self.override_texts.get(name, ""), self.reporter)
         else:
             value = lowerer.lower(value_tree, scope, CONTEXTS[True, True])
         scope.values[name] = value

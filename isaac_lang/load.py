@@ -17,6 +17,7 @@ from isaac_ir import ir
 from isaac_lang.assets import check_assets
 from isaac_lang.check import check
 from isaac_ir.diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean
+from isaac_lang.overrides import set_label
 from isaac_lang.expand import Expander, Limits
 from isaac_lang.lower import SceneLowerer
 from isaac_lang.lower_expr import ExprContext, ExprLowerer, Scope
@@ -82,19 +83,20 @@ def _load_stages(path: Path, root: Path, overrides: dict, limits: Limits, source
     parsed_overrides = _parse_overrides(overrides, reporter, sources)
     reporter.raise_if_any()
     expander = Expander(root, sources, reporter, parsed_overrides, limits, texts)
+    expander.override_texts = {name: str(text).strip() for name, text in overrides.items()}
     scope = Scope()
     if text is None:
         expander.expand_file(path, scope)
     else:
         _expand_text(expander, path, text, scope)
     for name in sorted(set(parsed_overrides) - expander.out.used_overrides):
-        reporter.error(f"--set {name}: the scene has no parameter `{name}`", None,
+        reporter.error(f"`{set_label(name, str(overrides[name]).strip())}`: the scene has no parameter `{name}`", None,
                        did_you_mean(name, expander.out.parameters) or
                        "parameters are the scene's top-level `let`s")
     reporter.raise_if_any()
     root_name = expander.include_stack[0] if expander.include_stack else path.name
     scene = SceneLowerer(expander.out, reporter, path.name).run()
-    warnings = check(scene, reporter)
+    warnings = reporter.warnings + check(scene, reporter)
     reporter.raise_if_any()
     if assets:
         check_assets(scene, root, reporter, sources)
@@ -118,8 +120,8 @@ def _parse_overrides(overrides: dict, reporter: Reporter, sources: SourceCache) 
     """--set NAME=VALUE: each VALUE is an expression of the language, e.g. `2 m` or `0.5*pi`."""
     parsed = {}
     for name, text in overrides.items():
-        label = f"--set {name}"
-        sources.add(label, str(text))
+        label = set_label(name, str(text).strip())
+        sources.add(label, str(text).strip())
         try:
             tree = parse_expression(str(text))
         except UnexpectedInput as error:

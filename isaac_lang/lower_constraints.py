@@ -17,7 +17,7 @@ from isaac_ir import expr as E
 from isaac_ir import ir
 from isaac_ir import units as U
 from isaac_ir.diagnostics import did_you_mean
-from isaac_lang.lower_expr import AXES, CONTEXTS, FIXED, BodyRef, ExprContext, Scope, Typed, ref_name, ref_text
+from isaac_lang.lower_expr import AXES, CONTEXTS, FIXED, BodyRef, ExprContext, Scope, Typed, range_ends, ref_name, ref_text
 from isaac_lang.props import Props
 from isaac_lang.vocabulary import CONSTRAINT_PROPS, FORCE_PROPS
 
@@ -63,8 +63,10 @@ class ConstraintLowerer:
         """(start, end) of `during A .. B`, `from A`, `until B` (or always: 0 .. inf)."""
         if window is None:
             return 0.0, math.inf
-        values = [decl.lowerer.constant(decl.lowerer.lower(c, decl.scope, FIXED), U.TIME,
-                                        f"a {what}'s time", c) for c in window.children]
+        typed = (range_ends(decl.lowerer, window.children, decl.scope, FIXED) if window.data == "during"
+                 else [decl.lowerer.lower(c, decl.scope, FIXED) for c in window.children])
+        values = [decl.lowerer.constant(value, U.TIME, f"a {what}'s time", c)
+                  for value, c in zip(typed, window.children)]
         if window.data == "during":
             start, end = values
             if end <= start:

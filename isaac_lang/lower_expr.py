@@ -406,13 +406,14 @@ class ExprLowerer:
             shape = f"a {size}-vector" if size else "a single number"
             raise self.fail(f"{what} wants {shape}", node)
         if value.dim is None:
-            if dim == U.ANGLE and not size:
-                return E.mul(value.node, E.Const(math.pi / 180.0))
-            if dim == U.DIMENSIONLESS or size or bare_ok:
+            if dim == U.DIMENSIONLESS or bare_ok or is_zero(value.node):
                 return value.node
-            example = U.EXAMPLE_UNIT.get(dim, U.format_dim(dim))
-            raise self.fail(f"{what} needs a unit: it is {U.describe(dim)}", node,
-                            f"write the unit after the number, e.g. `{_example_number(value)} {example}`")
+            if size:
+                message, hint = bare_vector_reading(value, dim, what)
+                self.reporter.warn(message, self.pos(node), hint)
+                return value.node
+            message, hint = bare_number_refusal(value, dim, what, size)
+            raise self.fail(message, node, hint)
         if value.dim == dim or (dim == U.DIMENSIONLESS and value.dim == U.ANGLE):
             return value.node
         if U.without_angle(value.dim) == U.without_angle(dim) and dim[3] != 0:
@@ -421,9 +422,8 @@ class ExprLowerer:
                 raise self.fail(f"{what} wants {U.describe(dim)}: Hz counts cycles, not radians", node,
                                 "1 Hz is 2 pi rad/s: write e.g. `2 * pi * 3 rad/s`, or the value in rad/s")
             return value.node
-        expected = U.EXAMPLE_UNIT.get(dim, U.format_dim(dim))
         raise self.fail(f"{what} wants {U.describe(dim)}, not {U.describe(value.dim)}", node,
-                        f"use a unit of {U.describe(dim)}, e.g. `{expected}`")
+                        wrong_unit_hint(dim, value.dim))
 
     def constant(self, value: Typed, dim: tuple, what: str, node, size: int = 0, bare_ok=False):
         node_si = self.coerce(value, dim, what, node, size, bare_ok)
@@ -513,7 +513,69 @@ def _largest(value) -> float:
 def _example_number(value: Typed) -> str:
     if isinstance(value.node, E.Const) and not isinstance(value.node.value, tuple):
         return f"{value.node.value:g}"
-    return "1"
+    if isinstance(value.node, E.Const) and all(isinstance(v, float) for v in value.node.value):
+        return "(" + ", ".join(f"{v:g}" for v in value.node.value) + ")"
+    return "(x, y, z)" if value.size == 3 else "1"
+
+
+# ---- the rule for bare numbers (docs/language.md, "Bare numbers") -------------------------------------------
+
+def is_zero(node: E.Expr) -> bool:
+    """A constant zero, or a vector of zeros: zero in every unit, so it needs none."""
+    if type(node) is not E.Const:
+        return False
+    value = node.value
+    if type(value) is tuple:
+        return all(type(v) is float and v == 0.0 for v in value)
+    return type(value) is float and value == 0.0
+
+
+def bare_number_refusal(value: Typed, dim: tuple, what: str, size: int) -> tuple:
+    """(message, hint) for a number without a unit in a slot that has one: it is never read in a unit it does
+    not name, for a scalar, a vector or a range alike."""
+    example = U.EXAMPLE_UNIT.get(dim, U.format_dim(dim))
+    message = f"{what} needs a unit: it is {U.describe(dim)}"
+    return message, f"write the unit after the {'vector' if size else 'number'}, e.g. " \
+                    f"`{_example_number(value)} {example}`"
+
+
+def written_unit(tree) -> str | None:
+    """The unit a value is written in: `30 deg` -> deg, `-2 cm` -> cm, `(1, 2, 3) m` -> m; None for an expression
+    of other values (`2 * length`)."""
+    while isinstance(tree, Tree) and tree.data == "neg":
+        tree = tree.children[0]
+    if isinstance(tree, Tree) and tree.data == "quantity" and isinstance(tree.children[1], Token):
+        return str(tree.children[1])
+    return None
+
+
+def range_ends(lowerer: "ExprLowerer", trees, scope: Scope, ctx: ExprContext) -> list:
+    """The two ends of `START .. END` lowered, a start without a unit taking the unit its end is written in
+    (`0 .. 2 s`, `5 .. 20 ms`): a range has one unit, written once at its end."""
+    start, end = (lowerer.lower(tree, scope, ctx) for tree in trees)
+    unit = written_unit(trees[1])
+    if start.dim is None and end.dim is not None and unit is not None:
+        factor, dim = U.parse_unit(unit)
+        start = Typed(E.fold(E.mul(start.node, E.Const(factor))), dim)
+    return [start, end]
+
+
+def bare_vector_reading(value: Typed, dim: tuple, what: str) -> tuple:
+    """(message, hint) of a vector written without a unit in a slot with one: read in SI, and said so."""
+    unit = U.SI_UNIT.get(dim, U.format_dim(dim))
+    written = _example_number(value)
+    other = U.OTHER_UNIT.get(dim)
+    meant = f" (or `{written} {other}` if that is what was meant)" if other else ""
+    return (f"{what} has no unit: read as {written} {unit}, {U.describe(dim)} in SI",
+            f"write the unit after the vector: `{written} {unit}`{meant}")
+
+
+def wrong_unit_hint(wanted: tuple, given: tuple) -> str:
+    """What to write instead of a value of the wrong dimension."""
+    if wanted == U.DIMENSIONLESS:
+        return f"this takes a plain number (a ratio, a count or a direction): drop the unit ({U.describe(given)})"
+    expected = U.EXAMPLE_UNIT.get(wanted, U.format_dim(wanted))
+    return f"use a unit of {U.describe(wanted)}, e.g. `{expected}`"
 
 
 # constraint library calls (kept here so expressions can say "this is a constraint")

@@ -8,7 +8,7 @@ from lark import Token, Tree
 from isaac_ir import expr as E
 from isaac_ir import units as U
 from isaac_ir.diagnostics import did_you_mean
-from isaac_lang.lower_expr import CONTEXTS, ExprContext, ExprLowerer, Scope, Typed
+from isaac_lang.lower_expr import CONTEXTS, ExprContext, ExprLowerer, Scope, Typed, range_ends
 
 TRUE_WORDS = {"on", "true", "yes"}
 FALSE_WORDS = {"off", "false", "no"}
@@ -136,11 +136,9 @@ class Props:
         value = self.node(name)
         if not (isinstance(value, Tree) and value.data == "range"):
             raise self.lowerer.fail(f"`{name}` takes a range: `{name} START .. END`", value)
-        ends = []
-        for tree in value.children:
-            typed = self.lowerer.lower(tree, self.scope, CONTEXTS[False, False])
-            ends.append(self.lowerer.constant(typed, dim, f"`{name}`", tree))
-        return tuple(ends)
+        typed_ends = range_ends(self.lowerer, value.children, self.scope, CONTEXTS[False, False])
+        return tuple(self.lowerer.constant(typed, dim, f"`{name}`", tree)
+                     for typed, tree in zip(typed_ends, value.children))
 
     def block(self, name: str, vocabulary: dict, what: str) -> "Props":
         if name not in self.entries:

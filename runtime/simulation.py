@@ -13,6 +13,7 @@ the motion of every step), at the collision stage's looks, and after each step w
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,6 +71,7 @@ class Simulation:
         self.plan = plan
         self.state = State.initial(plan)
         self.events: list = []
+        self.compile_seconds = 0.0  # spent compiling the core (a first run on a machine), apart from the run
         self._compile_notice = CompileNotice.begin(measure, *self._stepper_class(plan).entries)
         self.compiled = CompiledPlan(plan)
         self.stepper = self._stepper_class(plan)(self.compiled, plan)
@@ -324,7 +326,7 @@ class Simulation:
                                          and end <= done + steps and not in_python), np.int64)
             frames = self._frame_buffer(len(frame_step), steps)
             taken = self.stepper.run(self._act, s.y, t0 + done * h, h, steps, frame_step, frames, self._status)
-            self._compile_notice.end()
+            self._end_compile_notice()
             first = done
             done += taken
             s.steps += taken
@@ -498,6 +500,13 @@ class Simulation:
         self._looks = self._looks[-(LOOKS - 1):] + [self.state.steps]
         if len(self._looks) == LOOKS and self._looks[-1] - self._looks[0] < STEPS:
             self.collider.wants_capture = f"the contacts changed {LOOKS} times within {STEPS} steps"
+
+    def _end_compile_notice(self) -> None:
+        """The compile notice's last line, and its time counted apart from the run's."""
+        started = self._compile_notice.started
+        if started:
+            self.compile_seconds += time.perf_counter() - started
+        self._compile_notice.end()
 
     def switch_to_capture(self, why: str, t_end: float | None = None) -> None:
         """From now on contacts are solved in the capturing loop (runtime/capture), which keeps them itself; the

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from isaac_ir.diagnostics import SourceCache
+from isaac_ir.diagnostics import SourceCache, counted
 from isaac.golden.compare import Finding, compare
 from isaac.golden.record import make_record
 from isaac.golden.settings import check_sample_count, load_settings, settings_path
@@ -116,10 +116,10 @@ def _summary(sections: dict) -> str:
     events = sections.get("events")
     if events is not None:
         parts.append(f"{events['impact_count']} impact{'' if events['impact_count'] == 1 else 's'}"
-                     + (f", {len(events['contacts'])} contact pairs" if events["contacts"] else ""))
+                     + (f", {counted(len(events['contacts']), 'contact pair')}" if events["contacts"] else ""))
     if "report" in sections:
         parts.append("report")
     if "audio" in sections:
         audio = sections["audio"]
-        parts.append(f"audio: {len(audio['onsets'])} onsets, {len(audio['peaks'])} spectral peaks")
+        parts.append(f"audio: {counted(len(audio['onsets']), 'onset')}, {counted(len(audio['peaks']), 'spectral peak')}")
     return ", ".join(parts)

@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from isaac_ir.diagnostics import counted
+
 from ..signals import asset_folders
 from .narrow import needs_fcl
 from .pairs import count_pairs, excluded_keys, exclusion_pairs, pair_keys
@@ -121,7 +123,7 @@ class CollisionPlan:
         reasons = ", ".join(f"{v} {k}" for k, v in self.reasons.items() if v)
         n = self.restored_pairs
         restored = f"; {n} joined pair{'s' if n != 1 else ''} restored by `collide`" if n else ""
-        return (f"collisions: {len(self.collidable)} bodies ({kinds}), {self.pairs} pairs can touch"
+        return (f"collisions: {counted(len(self.collidable), 'body')} ({kinds}), {counted(self.pairs, 'pair')} can touch"
                 f"{' (excluded: ' + reasons + ')' if reasons else ''}{restored}; narrow phase: {narrow}")
 
 

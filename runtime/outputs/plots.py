@@ -94,8 +94,9 @@ def _spectrogram(fig, audio: Path, title):
         samples = samples.mean(axis=1)  # the channels mixed down
     axis = fig.subplots()
     if len(samples) >= 256:
-        axis.specgram(samples, NFFT=1024 if len(samples) >= 1024 else 256, Fs=rate, noverlap=512
-                      if len(samples) >= 1024 else 128, cmap="magma", scale="dB")
+        with np.errstate(divide="ignore", invalid="ignore"):  # silence is -inf dB: drawn blank, not warned
+            axis.specgram(samples, NFFT=1024 if len(samples) >= 1024 else 256, Fs=rate, noverlap=512
+                          if len(samples) >= 1024 else 128, cmap="magma", scale="dB")
     axis.set_xlabel("time (s)")
     axis.set_ylabel("frequency (Hz)")
     axis.set_title(f"{title}: spectrogram of {audio.name}")

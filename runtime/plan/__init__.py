@@ -12,6 +12,7 @@ import numpy as np
 
 from isaac_ir import expr as E
 from isaac_ir import ir
+from isaac_ir.diagnostics import counted
 
 from .budgets import check_budgets
 from ..constraints.plan import ConstraintPlan, compile_constraints
@@ -82,7 +83,7 @@ class Plan:
         return stages
 
     def describe(self) -> str:
-        lines = [f"scene {self.scene.name}: {self.n} bodies ({int(self.dynamic.sum())} dynamic)",
+        lines = [f"scene {self.scene.name}: {counted(self.n, 'body')} ({int(self.dynamic.sum())} dynamic)",
                  f"solver: {self.solver}, integrator {self.integrator}, step {self.step:g} s ({self.step_reason})",
                  f"time: {self.start:g} s .. {self.end:g} s, {len(self.frame_times)} frames"]
         if self.constraints is not None:

@@ -122,9 +122,37 @@ def test_bare_numbers_are_an_error_in_scalar_slots_with_a_unit():
 
 
 def test_bare_numbers_where_they_are_allowed():
-    loaded = load_text("scene s {\n  frames 30\n  camera c { fov 40 }\n}\n", "s.isaac").scene
+    loaded = load_text("scene s {\n  frames 30\n  camera c { fov 40 deg }\n}\n", "s.isaac").scene
     assert loaded.time.frame_rate == 30.0  # a rate: Hz
-    assert loaded.cameras[0].fov == pytest.approx(math.radians(40))  # an angle: degrees
+    assert loaded.cameras[0].fov == pytest.approx(math.radians(40))
+
+
+def test_a_bare_angle_is_refused_like_any_other_scalar():
+    with pytest.raises(SceneError, match="`fov` needs a unit: it is an angle") as caught:
+        load_text("scene s {\n  camera c { fov 40 }\n}\n", "s.isaac")
+    assert caught.value.diagnostics[0].hint == "write the unit after the number, e.g. `40 deg`"
+
+
+def test_a_bare_vector_in_a_slot_with_a_unit_is_read_in_si_and_said_so():
+    loaded = load_text("scene s {\n  body b box { size (10, 10, 10)  mass 1 kg }\n}\n", "s.isaac")
+    assert loaded.scene.body("b").shape.size == (10.0, 10.0, 10.0)
+    [warning] = loaded.warnings
+    assert warning.startswith("s.isaac:2:21: `size` has no unit: read as (10, 10, 10) m, a length in SI")
+    assert "hint: write the unit after the vector: `(10, 10, 10) m` (or `(10, 10, 10) cm`" in warning
+
+
+def test_zero_needs_no_unit_and_a_range_takes_the_unit_of_its_end():
+    loaded = load_text("scene s {\n  time 5 .. 20 ms\n  body b sphere { radius 5 cm  mass 1 kg  at (0, 0, 0) }"
+                       "\n  constraint n nail(b, (0, 0, 0)) during 0 .. 10 ms\n}\n", "s.isaac")
+    assert (loaded.scene.time.start, loaded.scene.time.end) == pytest.approx((0.005, 0.02))
+    assert (loaded.scene.constraints[0].start, loaded.scene.constraints[0].end) == pytest.approx((0.0, 0.01))
+    assert loaded.warnings == []
+
+
+def test_a_direction_with_a_unit_gets_a_hint_that_makes_sense():
+    with pytest.raises(SceneError) as caught:
+        load_text("scene s {\n  body f static plane { normal (1, 0, 0) m }\n}\n", "s.isaac")
+    assert "drop the unit" in caught.value.diagnostics[0].hint
 
 
 def test_euler_angles_default_to_degrees():
