@@ -147,7 +147,9 @@ def test_failing_variants_record_their_diagnostic_and_the_others_go_on(client, t
     assert list(table["status"]) == ["ok", "blow-up", "scene-error"]
     assert table["diagnostic"].isna()[0]
     assert "numerical blow-up" in table["diagnostic"][1]
-    assert "unstable.isaac:4:" in table["diagnostic"][2] and "frequency" in table["diagnostic"][2]
+    # a value of the wrong dimension is the `--set`'s mistake (docs/language.md), said with the let it sets
+    assert "`--set stabilization=1 kg` gives a mass" in table["diagnostic"][2]
+    assert "frequency" in table["diagnostic"][2] and "unstable.isaac:1:" in table["diagnostic"][2]
     assert (Path(table["outputs"][1]) / "trajectory.npz").is_file()  # kept up to the blow-up, as `isaac run` does
     assert table["outputs"].isna()[2]
 

@@ -82,7 +82,7 @@ def check_names(scene, values: dict) -> None:
     try:
         load_scene(scene, values)
     except SceneError as error:
-        about_names = [d for d in error.diagnostics if d.pos is None and d.message.startswith("--set ")]
+        about_names = [d for d in error.diagnostics if "the scene has no parameter" in d.message]
         if about_names:
             raise SceneError(about_names) from None
 

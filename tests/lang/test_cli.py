@@ -80,7 +80,7 @@ def test_the_installed_command_runs():
     scene = ROOT / "scenes" / "pendulum.isaac"
     result = subprocess.run([str(ISAAC), "check", str(scene)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
-    assert "pendulum.isaac: ok (1 bodies, 1 constraints)" in result.stdout
+    assert "pendulum.isaac: ok (1 body, 1 constraint)" in result.stdout
 
 
 def test_the_installed_command_reports_a_damaged_scene(tmp_path):
@@ -102,7 +102,7 @@ def test_set_overrides_a_parameter(capsys):
 def test_set_of_an_unknown_parameter(capsys):
     code, out, err = run_cli(capsys, "check", str(ROOT / "scenes" / "pendulum.isaac"), "--set", "lenght=2m")
     assert code == 2 and "Traceback" not in err
-    assert "--set lenght: the scene has no parameter `lenght`" in err
+    assert "`--set lenght=2m`: the scene has no parameter `lenght`" in err
     assert "did you mean `length`?" in err
 
 

@@ -20,8 +20,8 @@ SCENES = ROOT / "scenes"
 ISAAC = Path(sys.executable).with_name("isaac")
 SWING = """scene swing {
   time 0 s .. 1 s
-  body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) }
-  constraint hang nail(bob @ (-1, 0, 0), (0, 0, 0))
+  body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) m }
+  constraint hang nail(bob @ (-1, 0, 0) m, (0, 0, 0))
 }
 """
 
@@ -114,7 +114,7 @@ def test_until_before_the_scene_starts(tmp_path, capsys):
 
 def test_constraints_no_pose_satisfies_are_named_at_their_position_and_exit_3(tmp_path, capsys):
     # two nails of one point 0.5 m apart: the closest pose leaves 0.25 m on each, above the limit (0.1 m)
-    scene = scene_file(tmp_path, with_line(SWING, "  constraint other nail(bob @ (-1, 0, 0), (0, 0.5, 0))"))
+    scene = scene_file(tmp_path, with_line(SWING, "  constraint other nail(bob @ (-1, 0, 0) m, (0, 0.5, 0) m)"))
     code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--until", "0.5")
     assert code == 3 and "Traceback" not in err
     assert err.startswith(f"{scene}:4:3: warning: constraints `hang` and `other` cannot both hold: in the pose of "

@@ -221,13 +221,13 @@ def test_an_error_in_a_part_used_twice_is_reported_once():
 
 def test_set_of_an_unknown_parameter():
     found = diagnostics(f"let length = 1 m\nscene s {{\n  {BOB}\n}}\n", overrides={"lenght": "2 m"})
-    assert [d.message for d in found] == ["--set lenght: the scene has no parameter `lenght`"]
+    assert [d.message for d in found] == ["`--set lenght=2 m`: the scene has no parameter `lenght`"]
     assert found[0].hint == "did you mean `length`?"
 
 
 def test_set_with_a_bad_value():
     found = diagnostics(f"let length = 1 m\nscene s {{\n  {BOB}\n}}\n", overrides={"length": "2 m )"})
-    assert found[0].pos.file == "--set length" and "unexpected" in found[0].message
+    assert found[0].pos.file == "--set length=2 m )" and "unexpected" in found[0].message
 
 
 def test_set_overrides_a_let():
@@ -243,4 +243,6 @@ def test_set_overrides_a_let():
 def test_set_value_with_the_wrong_unit():
     text = "let length = 1 m\nscene s {\n  body b sphere { radius length  mass 1 kg }\n}\n"
     diagnostic = only(text, overrides={"length": "2 s"})
-    assert diagnostic.message == "`radius` wants a length, not a time"
+    # the --set's mistake, said at the --set, with where the let it sets is written (issue 32)
+    assert diagnostic.message == "`--set length=2 s` gives a time, but `length` is a length (written at s.isaac:1:14)"
+    assert diagnostic.pos.file == "--set length=2 s"

@@ -19,7 +19,7 @@ scene demo {
     at (0, arm, 0)
     material steel
   }
-  constraint hang nail(ball @ (0, 0.1, 0), (0, 1, 0))
+  constraint hang nail(ball @ (0, 10 cm, 0), (0, 1, 0) m)
 }
 """
 

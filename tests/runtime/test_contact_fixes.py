@@ -71,7 +71,7 @@ TOO_FAST = """scene s {
   frames 100 Hz
   solver %s { step 10 ms }
   body ball sphere { radius 5 cm  mass 1 kg  velocity (1e300, 0, 0) m/s }
-  body other sphere { radius 5 cm  mass 1 kg  at (0, 1, 0) }
+  body other sphere { radius 5 cm  mass 1 kg  at (0, 1, 0) m }
 }
 """
 
@@ -81,8 +81,8 @@ TOO_STIFF = """scene bad {
   time 0 s .. 5 s
   frames 50 Hz
   solver dynamics { step 20 ms  stabilize 200 Hz  tolerance 0 }
-  body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) }
-  constraint hang nail(bob @ (-0.9, 0, 0), (0, 0, 0))
+  body bob sphere { radius 5 cm  mass 1 kg  at (1, 0, 0) m }
+  constraint hang nail(bob @ (-0.9, 0, 0) m, (0, 0, 0))
 }
 """
 
