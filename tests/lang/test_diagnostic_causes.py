@@ -49,3 +49,13 @@ def test_a_closing_parenthesis_inside_braces_names_the_open_brace():
     text = "scene s {\n  time 0 .. 1 s\n  body b sphere { radius 1 cm ) }\n}\n"
     err = load_error(text)
     assert "hint: the `{` opened at 3:17 is not closed: add `}` before this `)`" in err
+
+
+# -- a scene loaded from text ----------------------------------------------------------------------------------
+
+def test_a_scene_loaded_from_text_formats_its_errors_with_the_line_and_caret():
+    text = "scene s {\n  time 0 .. 1 s\n  body b sphere { radius 10 }\n}\n"
+    err = load_error(text, "<scene>")
+    assert err.startswith("<scene>:3:26: error:")
+    assert "    3 |   body b sphere { radius 10 }" in err
+    assert "      |                          ^" in err
