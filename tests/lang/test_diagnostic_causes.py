@@ -59,3 +59,29 @@ def test_a_scene_loaded_from_text_formats_its_errors_with_the_line_and_caret():
     assert err.startswith("<scene>:3:26: error:")
     assert "    3 |   body b sphere { radius 10 }" in err
     assert "      |                          ^" in err
+
+
+# -- dimensions that do not match ------------------------------------------------------------------------------
+
+SCENE_WITH = "scene s {{\n  time 0 .. 1 s\n  let h = 1 m\n  let t = 2 s\n  let x = {}\n}}\n"
+
+
+@pytest.mark.parametrize("expr, message, hint", [
+    ("h + 2 s", "cannot add a length and a time",
+     "both sides of `+` must have the same dimension: here a length and a time; did you mean `2 m`?"),
+    ("h - 2 s", "cannot subtract a time from a length",
+     "both sides of `-` must have the same dimension: here a length and a time; did you mean `2 m`?"),
+    ("3 kg + h", "cannot add a mass and a length",
+     "both sides of `+` must have the same dimension: here a mass and a length; did you mean `3 m`?"),
+    ("h - t", "cannot subtract a time from a length",
+     "check the unit of each side (`h` is a length, `t` is a time)"),
+    ("min(h, 3 s)", "`min`: cannot mix a length and a time",
+     "the arguments of `min` must have the same dimension: here a length and a time; did you mean `3 m`?"),
+    ("(h, 2 s, 0 m)", "vector components disagree: a length and a time",
+     "the components of a vector must have the same dimension: here a length and a time; did you mean `2 m`?"),
+])
+def test_a_dimension_mismatch_says_what_must_agree(expr, message, hint):
+    err = load_error(SCENE_WITH.format(expr))
+    assert f"x.isaac:5:11: error: {message}" in err
+    assert f"    5 |   let x = {expr}" in err
+    assert "hint: " in err and hint in err
