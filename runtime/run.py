@@ -274,7 +274,7 @@ def run_report(sim: Simulation, recorder: Recorder, energy0: float, wall: float,
     plan = sim.plan
     arrays = recorder.arrays()
     energy = arrays["energy"]
-    scale = energy_scale(plan)
+    scale = drift_scale(plan)
     warnings = list(plan.warnings)
     if sim.rank_deficient():
         warnings.append(checks.redundant_warning(plan, sim.constraint_residuals()[1]))
@@ -298,6 +298,30 @@ def run_report(sim: Simulation, recorder: Recorder, energy0: float, wall: float,
         "warnings": warnings + contact_warnings(sim.contact_report(), plan.scene),
         "error": str(error) if error else None,
     }
+
+
+def drift_scale(plan) -> float:
+    """The yardstick of the energy drift: the core's (runtime/core/build.py energy_scale: m |g| times the spread
+    of the dynamic bodies, 1 m for one body, or the kinetic energy at the start), or the potential energy of the
+    dynamic bodies above the lowest body of the scene, whichever is larger: each variant of a sweep over drop
+    heights measures its drift against its own drop."""
+    return max(energy_scale(plan), _potential_above_lowest(plan))
+
+
+def _potential_above_lowest(plan) -> float:
+    """m |g| h summed over the dynamic bodies, h the height (against gravity) above the lowest body, static ones
+    included (a ground, a table); 0 without gravity or without a body below."""
+    gravity = np.asarray(plan.gravity, float)
+    g = float(np.linalg.norm(gravity))
+    dynamic = np.asarray(plan.dynamic, bool)
+    positions = np.asarray(plan.x0, float)
+    if g == 0.0 or not dynamic.any() or not np.isfinite(g):
+        return 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        heights = positions @ (-gravity / g)
+        above = heights[dynamic] - np.nanmin(heights)
+        potential = float(np.sum(np.asarray(plan.mass, float)[dynamic] * g * above))
+    return potential if np.isfinite(potential) else 0.0
 
 
 def contact_warnings(contact: dict | None, scene: ir.Scene | None = None) -> list:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import pytest
+
 from runtime import checks
 from runtime.run import contact_warnings, format_warning
 
@@ -72,3 +74,23 @@ def test_a_constraint_switched_on_at_the_last_frame_is_not_judged_settled():
     windows = checks.settling_windows(scene, plan)
     assert windows and windows[0][0] == 1.0
     assert not checks.outside_windows([0.5, 1.0], windows)[-1]
+
+
+# -- the energy yardstick of a sweep's variants (issue 32) -----------------------------------------------------
+
+def a_drop(height: float):
+    """The plan of one ball above a static ground, as the run sees it (x0, mass, gravity, dynamic)."""
+    import numpy as np
+
+    return SimpleNamespace(x0=np.array([[0.0, 0.0, 0.0], [0.0, height, 0.0]]), v0=np.zeros((2, 3)),
+                           w0=np.zeros((2, 3)), inertia_body=np.stack([np.eye(3)] * 2), mass=np.array([0.0, 2.0]),
+                           gravity=np.array([0.0, -9.81, 0.0]), dynamic=np.array([False, True]))
+
+
+def test_each_drop_height_has_its_own_energy_scale():
+    from runtime.run import drift_scale
+
+    low, high = drift_scale(a_drop(0.5)), drift_scale(a_drop(8.0))
+    assert high == pytest.approx(2.0 * 9.81 * 8.0)
+    assert high > low
+    assert low == pytest.approx(2.0 * 9.81 * 1.0)  # never below the core's yardstick (m |g| 1 m for one body)
