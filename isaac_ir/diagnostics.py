@@ -77,11 +77,15 @@ def _window(text: str, col: int) -> tuple:
 class SceneError(Exception):
     """A problem in the scene (exit code 2): one or more diagnostics, all reported together."""
 
-    def __init__(self, diagnostics: list[Diagnostic]):
+    def __init__(self, diagnostics: list[Diagnostic], sources: "SourceCache | None" = None):
         self.diagnostics = list(diagnostics)
+        self.sources = sources  # the texts the scene was read from, when the loader knows them
         super().__init__("\n".join(d.message for d in self.diagnostics))
 
     def format(self, sources: "SourceCache | None" = None) -> str:
+        """Every diagnostic with its source line and caret (from `sources`, else from the texts the scene was read
+        from)."""
+        sources = sources if sources is not None else self.sources
         return "\n".join(d.format(sources) for d in self.diagnostics)
 
 

@@ -74,7 +74,9 @@ def _load(path: Path, root: Path, overrides: dict, limits: Limits, sources: Sour
         try:
             return _load_stages(path, root, overrides, limits, sources, text, assets, texts)
         except SceneError as error:
-            raise explain_unit_typos(error, sources) from None
+            explained = explain_unit_typos(error, sources)
+            explained.sources = sources
+            raise explained from None
 
 
 def _load_stages(path: Path, root: Path, overrides: dict, limits: Limits, sources: SourceCache,

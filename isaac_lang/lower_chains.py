@@ -18,6 +18,7 @@ from lark import Tree
 
 from isaac_ir import expr as E
 from isaac_ir import units as U
+from isaac_lang.dimension_hints import sum_mismatch
 from isaac_lang.typed import Typed
 
 # terms left in a chain from which its expression is built balanced rather than leaning left
@@ -36,8 +37,9 @@ def lower_sum(lowerer, tree, scope, ctx):
         term = lowerer.lower(node.children[1], scope, ctx)
         try:
             dim = U.unify(dim, term.dim)
-        except U.UnitError as error:
-            raise lowerer.fail(str(error), node) from None
+        except U.UnitError:
+            message, hint = sum_mismatch(node.data, dim, term.dim, node.children[0], node.children[1])
+            raise lowerer.fail(message, node, hint) from None
         if size and term.size and size != term.size:
             raise lowerer.fail(f"cannot combine a {size}-vector and a {term.size}-vector", node)
         size = size or term.size

@@ -15,6 +15,7 @@ from lark.exceptions import UnexpectedInput
 
 from isaac_ir import expr as E
 from isaac_lang import lower_chains as chains
+from isaac_lang.dimension_hints import arguments_mismatch, components_mismatch
 from isaac_lang.typed import Typed
 from isaac_ir import units as U
 from isaac_ir.diagnostics import Reporter, SourcePos, SceneError, did_you_mean
@@ -218,14 +219,16 @@ class ExprLowerer:
         dim = None
         # a table of constant rows of one size, as `modes ((440, 3, 1), (880, 5, 0.5))` is; else numbers
         table = sizes[0] and all(s == sizes[0] and type(i.node) is E.Const for s, i in zip(sizes, items))
-        for item, size in zip(items, sizes):
+        for child, item, size in zip(tree.children, items, sizes):
             if size and not table:
                 raise self.fail("a vector's components must be numbers", tree)
             if item.dim is not None and item.dim != dim:  # (else U.unify leaves `dim` as it is)
                 try:
                     dim = U.unify(dim, item.dim)
-                except U.UnitError as error:
-                    raise self.fail(f"vector components disagree: {error}", tree)
+                except U.UnitError:
+                    first = next(c for c, i in zip(tree.children, items) if i.dim is not None)
+                    raise self.fail(f"vector components disagree: {U.describe(dim)} and {U.describe(item.dim)}", tree,
+                                    components_mismatch(dim, item.dim, first, child))
         if table or numbers:  # rows as written (E.Vec stacks its items along the last axis: it would transpose
             return Typed(E.Const(tuple(values)), dim)  # them); numbers as folding E.Vec of them gives them
         return Typed(E.fold(E.Vec(tuple(i.node for i in items))), dim)
@@ -327,14 +330,21 @@ class ExprLowerer:
             return U.scale_dim(args[0].dim, 0.5) if args[0].dim else None
         if fn in ("dot", "cross"):
             return U.combine(args[0].dim, args[1].dim, +1)
-        try:
-            dims = [a.dim for a in args[:2]] if fn == "lerp" else [a.dim for a in args]
-            dim = None
-            for d in dims:
-                dim = U.unify(dim, d)
-            return dim
-        except U.UnitError as error:
-            raise self.fail(f"`{fn}`: {error}", tree)
+        return self._common_dim(fn, args[:2] if fn == "lerp" else args, tree)
+
+    def _common_dim(self, fn: str, args: list, tree):
+        """The one dimension of arguments that must agree (a bare number adapts); an error names the two."""
+        arg_trees = [c for c in tree.children[1:] if c is not None]
+        dim, first = None, None
+        for arg, arg_tree in zip(args, arg_trees):
+            try:
+                dim = U.unify(dim, arg.dim)
+            except U.UnitError:
+                message, hint = arguments_mismatch(fn, dim, arg.dim, first, arg_tree)
+                raise self.fail(message, tree, hint) from None
+            if first is None and arg.dim is not None:
+                first = arg_tree
+        return dim
 
     def _opaque_call(self, fn, tree, arg_trees, scope, ctx) -> Typed:
         """A runtime signal or an audio node: arguments lowered, kept as a call the runtime evaluates."""

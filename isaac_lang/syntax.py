@@ -14,6 +14,7 @@ from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
 from isaac_ir.diagnostics import Reporter, SourcePos, did_you_mean, source_lines
+from isaac_lang.brackets import unclosed_hint
 from isaac_lang.parse_loop import ParseLoop, Rejected
 from isaac_lang.vocabulary import property_names
 
@@ -85,7 +86,7 @@ def describe_syntax_error(error: UnexpectedInput, text: str, file: str):
         lines = source_lines(text) or [""]
         pos = SourcePos(file, len(lines), len(lines[-1]) + 1)
         expected = _expected(error)
-        hint = _unclosed_brace(text) if "RBRACE" in (getattr(error, "expected", None) or ()) else None
+        hint = unclosed_hint(text, "$END", "", pos.line, pos.col, getattr(error, "expected", None))
         return f"unexpected end of file; expected {expected}", pos, hint
     token = error.token
     misspelled = _misspelled_keyword(token, text)
@@ -95,7 +96,9 @@ def describe_syntax_error(error: UnexpectedInput, text: str, file: str):
         return f"`{word}` is not a keyword", SourcePos(file, token.line, word_col, len(word)), guess
     pos = SourcePos(file, line, col, max(1, len(str(token))))
     message = f"unexpected {_token_text(token)}; expected {_expected(error)}"
-    return message, pos, _hint_for_token(token, text, error)
+    hint = unclosed_hint(text, token.type, str(token), token.line, token.column, getattr(error, "expected", None),
+                         is_keyword=token.type == "NAME" and str(token) in KEYWORDS)
+    return message, pos, hint or _hint_for_token(token, text, error)
 
 
 def _shown(char: str) -> str:
@@ -130,25 +133,6 @@ def _token_text(token: Token) -> str:
     if token.type == "$END":
         return "end of file"
     return f"`{token}`"
-
-
-def _unclosed_brace(text: str) -> str:
-    """Where the `{` that was never closed stands (comments and strings skipped)."""
-    stack = []
-    for number, line in enumerate(source_lines(text), start=1):
-        code = line.split("#")[0].split("//")[0]
-        in_string = False
-        for col, char in enumerate(code, start=1):
-            if char == '"':
-                in_string = not in_string
-            elif not in_string and char == "{":
-                stack.append((number, col))
-            elif not in_string and char == "}" and stack:
-                stack.pop()
-    if stack:
-        line, col = stack[-1]
-        return f"the `{{` at line {line}, column {col} is never closed: add a `}}`"
-    return "a `}` is missing"
 
 
 def _hint_for_character(char: str) -> str | None:

@@ -41,8 +41,8 @@ def settling_windows(scene, plan) -> list:
     windows = []
     for constraint in scene.constraints:
         begin = max(constraint.start, plan.start)
-        if begin >= plan.end:
-            continue
+        if begin > plan.end:  # switched on after the run (`--until`): one switched on at its last frame is not
+            continue  # settled there
         windows.append((begin, begin + SETTLE_DECAYS / _decay_rate(scene, constraint, plan)))
     return _merged(windows)
 
@@ -138,26 +138,62 @@ def conflicts(plan, recorder, residuals: dict, windows: list, limit: float | Non
             "bodies": [plan.names[b] for b in sorted(bodies)], "threshold": threshold}
 
 
-def conflict_warning(conflict: dict) -> str:
-    """The warning that names them."""
+def conflict_warning(conflict: dict, scene=None) -> str:
+    """The warning that names them, at the declaration of the worst (when the scene is given)."""
     kept = ", ".join(f"`{name}` ({conflict['errors'][name]:.3g})" for name in conflict["constraints"])
     kept += " keeps" if len(conflict["constraints"]) == 1 else " keep"
     against = ", ".join(f"`{name}`" for name in conflict["partners"])
     on = ", ".join(f"`{name}`" for name in conflict["bodies"])
-    return (f"constraints that cannot all hold: {kept} an error (m or rad) above {conflict['threshold']:g} "
-            f"once settled" + (f", against {against}" if against else "") + (f", on {on}" if on else "")
-            + ": check their points, axes and targets (two nails that disagree, a doubled orientation)")
+    message = (f"constraints that cannot all hold: {kept} an error (m or rad) above {conflict['threshold']:g} "
+               f"once settled" + (f", against {against}" if against else "") + (f", on {on}" if on else ""))
+    hint = "check their points, axes and targets (two nails that disagree, a doubled orientation)"
+    return positioned(message, constraint_source(scene, conflict["constraints"][0]), hint)
+
+
+def positioned(message: str, source: str | None, hint: str | None = None) -> str:
+    """A warning as the run reports it: `file:line:col: message` when its cause's position is known (the IR's
+    `source`), and a last line `hint: ...` (isaac_ir.diagnostics.warning_diagnostic reads it back)."""
+    from isaac_ir.diagnostics import SourcePos
+
+    where = f"{source}: " if source and SourcePos.parse(source) is not None else ""
+    return where + message + (f"\nhint: {hint}" if hint else "")
+
+
+def constraint_source(scene, name: str) -> str | None:
+    """Where the constraint `name` is declared ("file:line:col"), or None."""
+    return _source_of(getattr(scene, "constraints", ()), name)
+
+
+def body_source(scene, name: str) -> str | None:
+    """Where the body `name` is declared ("file:line:col"), or None."""
+    return _source_of(getattr(scene, "bodies", ()), name)
+
+
+def _source_of(declarations, name: str) -> str | None:
+    return next((d.source for d in declarations if d.name == name), None)
 
 
 def redundant_warning(plan, dropped: list) -> str:
     """The warning for rows the solver found dependent (J M^-1 J^T singular), naming their constraints when the
     last solve still had them."""
     cons = plan.constraints
-    names = sorted({cons.names[cons.row_constraint[r]] for r in dropped if 0 <= r < len(cons.row_constraint)})
+    names = sorted({cons.names[cons.row_constraint[r]] for r in dropped if 0 <= r < len(cons.row_constraint)},
+                   key=lambda n: _declared_order(plan.scene, n))
     if not names:
         return "redundant constraints: J M^-1 J^T was singular; solved in the least-squares sense"
-    return (f"redundant constraints: rows of {', '.join(f'`{n}`' for n in names)} repeat those of other "
-            f"constraints (J M^-1 J^T was singular); solved in the least-squares sense")
+    return positioned(f"redundant constraints: rows of {', '.join(f'`{n}`' for n in names)} repeat those of other "
+                      f"constraints (J M^-1 J^T was singular); solved in the least-squares sense",
+                      constraint_source(plan.scene, names[0]),
+                      "hold each degree of freedom by one constraint: take the repeated ones out of one of them "
+                      "(e.g. `weld(a, b) - rz`), or drop it")
+
+
+def _declared_order(scene, name: str) -> tuple:
+    """Where a constraint is declared, for sorting (file, line, column); undeclared names last."""
+    from isaac_ir.diagnostics import SourcePos
+
+    pos = SourcePos.parse(constraint_source(scene, name) or "")
+    return (0, pos.file, pos.line, pos.col, name) if pos else (1, "", 0, 0, name)
 
 
 def _partners(plan, names: set, rows: list, jacobian) -> list | None:
@@ -383,8 +419,7 @@ def unsatisfiable_warning(scene, found: dict) -> str:
     """The same finding as a warning of the plan (`file:line:col: message; hint`): the run goes on, names them
     again when it ends, and breaks the tolerance (exit 3)."""
     diagnostic = unsatisfiable_error(scene, found).diagnostics[0]
-    where = f"{diagnostic.pos}: " if diagnostic.pos is not None else ""
-    return f"{where}{diagnostic.message}; {diagnostic.hint}"
+    return positioned(diagnostic.message, str(diagnostic.pos) if diagnostic.pos else None, diagnostic.hint)
 
 
 def unsatisfiable_error(scene, found: dict):

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from isaac_ir import ir
-from isaac_ir.diagnostics import warning_diagnostic
+from isaac_ir.diagnostics import SourceCache, warning_diagnostic
 
 from . import checks
 from .outputs import goals
@@ -113,7 +113,7 @@ def simulate(scene: ir.Scene, options: RunOptions | None = None) -> RunResult:
     report["compile_time"] = sim.compile_seconds
     conflict = _conflicts(sim, recorder, options.max_constraint_error) if error is None else None
     if conflict is not None:
-        report["warnings"].append(checks.conflict_warning(conflict))
+        report["warnings"].append(checks.conflict_warning(conflict, scene))
     report["checks"] = {"max_constraint_error": checks.constraint_check(report, options.max_constraint_error,
                                                                         conflict)}
     if scene.goals:  # each goal a check: met or not (docs/goals.md)
@@ -208,11 +208,22 @@ def format_warning(text: str, scene_path, severity: str = "warning") -> str:
     diagnostic = warning_diagnostic(text, severity)
     pos = diagnostic.pos
     if pos is None:
-        return f"{scene_path}: {severity}: {text}"
+        return diagnostic.format().replace(f"{severity}: ", f"{scene_path}: {severity}: ", 1)
     folder = Path(scene_path).parent if scene_path else Path(".")
     if folder != Path(".") and not Path(pos.file).is_absolute():
         diagnostic = dataclasses.replace(diagnostic, pos=dataclasses.replace(pos, file=(folder / pos.file).as_posix()))
-    return diagnostic.format()
+    return diagnostic.format(_source_of(diagnostic.pos.file))
+
+
+def _source_of(file: str) -> SourceCache:
+    """The text of a scene file a warning points into, so that it prints with its line and caret (none when
+    the file cannot be read)."""
+    sources = SourceCache()
+    try:
+        sources.add(file, Path(file).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        pass
+    return sources
 
 
 def _say_error(where: str, message: str, source: str | None, hint: str) -> None:
@@ -263,7 +274,7 @@ def run_report(sim: Simulation, recorder: Recorder, energy0: float, wall: float,
     plan = sim.plan
     arrays = recorder.arrays()
     energy = arrays["energy"]
-    scale = energy_scale(plan)
+    scale = drift_scale(plan)
     warnings = list(plan.warnings)
     if sim.rank_deficient():
         warnings.append(checks.redundant_warning(plan, sim.constraint_residuals()[1]))
@@ -284,26 +295,60 @@ def run_report(sim: Simulation, recorder: Recorder, energy0: float, wall: float,
         "energy_drift_relative": float(np.nanmax(np.abs(energy - energy0)) / scale) if len(energy) else 0.0,
         "energy_scale": scale,
         "contact": sim.contact_report(),
-        "warnings": warnings + contact_warnings(sim.contact_report()),
+        "warnings": warnings + contact_warnings(sim.contact_report(), plan.scene),
         "error": str(error) if error else None,
     }
 
 
-def contact_warnings(contact: dict | None) -> list:
-    """The capturing path's failed checks, each with its worst case's time and pair."""
+def drift_scale(plan) -> float:
+    """The yardstick of the energy drift: the core's (runtime/core/build.py energy_scale: m |g| times the spread
+    of the dynamic bodies, 1 m for one body, or the kinetic energy at the start), or the potential energy of the
+    dynamic bodies above the lowest body of the scene, whichever is larger: each variant of a sweep over drop
+    heights measures its drift against its own drop."""
+    return max(energy_scale(plan), _potential_above_lowest(plan))
+
+
+def _potential_above_lowest(plan) -> float:
+    """m |g| h summed over the dynamic bodies, h the height (against gravity) above the lowest body, static ones
+    included (a ground, a table); 0 without gravity or without a body below."""
+    gravity = np.asarray(plan.gravity, float)
+    g = float(np.linalg.norm(gravity))
+    dynamic = np.asarray(plan.dynamic, bool)
+    positions = np.asarray(plan.x0, float)
+    if g == 0.0 or not dynamic.any() or not np.isfinite(g):
+        return 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        heights = positions @ (-gravity / g)
+        above = heights[dynamic] - np.nanmin(heights)
+        potential = float(np.sum(np.asarray(plan.mass, float)[dynamic] * g * above))
+    return potential if np.isfinite(potential) else 0.0
+
+
+def contact_warnings(contact: dict | None, scene: ir.Scene | None = None) -> list:
+    """The capturing path's failed checks, each with its worst case's time and pair, at the declaration of the
+    pair's first body (when the scene is given)."""
     if not contact or contact.get("path") != "capturing":
         return []
     said = []
     if contact["steps_too_deep"]:
         a, b = contact["deepest_pair"]
-        said.append(f"bodies interpenetrated by more than {contact['depth_limit'] * 1e3:g} mm in "
-                    f"{contact['steps_too_deep']} steps; deepest {contact['deepest'] * 1e3:.3g} mm, `{a}` and `{b}` "
-                    f"at t = {contact['deepest_time']:.6g} s (a smaller step, or thicker bodies, keeps them apart)")
+        said.append(checks.positioned(
+            f"bodies interpenetrated by more than {contact['depth_limit'] * 1e3:g} mm in "
+            f"{contact['steps_too_deep']} steps; deepest {contact['deepest'] * 1e3:.3g} mm, `{a}` and `{b}` "
+            f"at t = {contact['deepest_time']:.6g} s", _pair_source(scene, a, b),
+            "a smaller step, or thicker bodies, keeps them apart"))
     if contact["steps_creating_energy"]:
         a, b = contact["energy_created_pair"]
-        said.append(f"contact impulses created energy in {contact['steps_creating_energy']} steps; most "
-                    f"{contact['energy_created']:.3g} J, `{a}` and `{b}` at t = {contact['energy_created_time']:.6g} s")
+        said.append(checks.positioned(
+            f"contact impulses created energy in {contact['steps_creating_energy']} steps; most "
+            f"{contact['energy_created']:.3g} J, `{a}` and `{b}` at t = {contact['energy_created_time']:.6g} s",
+            _pair_source(scene, a, b), "a smaller step keeps contacts from adding energy"))
     return said
+
+
+def _pair_source(scene, a: str, b: str) -> str | None:
+    """Where the first declared body of a contact pair is declared (a dynamic body before the ground)."""
+    return checks.body_source(scene, a) or checks.body_source(scene, b)
 
 
 def _settled(plan, arrays: dict) -> dict:

@@ -130,7 +130,7 @@ def test_missing_closing_brace(capsys, tmp_path):
     lines = text[:-1].splitlines()
     assert_diagnostic(err, path, len(lines), len(lines[-1]) + 1, "unexpected end of file")
     scene_line, scene_col = line_col_of(PENDULUM, "scene pendulum {", len("scene pendulum "))
-    assert f"the `{{` at line {scene_line}, column {scene_col} is never closed" in err
+    assert f"the `{{` opened at {scene_line}:{scene_col} is not closed: add `}}`" in err
 
 
 def test_unknown_body_in_a_constraint(capsys, tmp_path):

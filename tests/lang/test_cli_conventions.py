@@ -136,7 +136,7 @@ def test_constraints_that_part_during_the_run_exit_3(tmp_path, capsys):
     scene = scene_file(tmp_path, with_line(SWING, moving))
     code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--until", "0.5", "--no-viewer")
     assert code == 3 and "above --max-constraint-error 0.1 (constraints `other`, `hang`)" in err
-    assert f"{scene}: warning: constraints that cannot all hold: `other`" in err and "Traceback" not in err
+    assert f"{scene}:5:3: warning: constraints that cannot all hold: `other`" in err and "Traceback" not in err
     report = json.loads((tmp_path / "o" / "report.json").read_text())
     assert report["checks"]["max_constraint_error"]["ok"] is False
     assert report["constraint_error_settled"] == pytest.approx(0.5, abs=1e-3)
