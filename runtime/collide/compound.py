@@ -10,6 +10,10 @@ pair of bodies may so have contacts in both orders, each consistent on its own. 
 Only part pairs whose boxes come within the margin are tested; a distance (margin inf) tests the part pairs in
 the order of their boxes' gap, a lower bound of their distance, and stops at the first gap beyond the nearest
 distance found.
+
+A pair of bodies whose part pairs all have a closed form is tested in compiled code (compound_compiled.py, the
+same steps with capture/narrow.py's tests: the clock's escape wheel against its anchor, 95 x 9 parts, 25 s -> 10 s
+of its run); the Python steps below take the pairs with a part python-fcl must test.
 """
 from __future__ import annotations
 

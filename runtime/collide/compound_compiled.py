@@ -2,8 +2,9 @@
 the buffers it writes into, and the pairs it takes. compound.py's CompoundPairs hands it every pair of bodies whose
 part pairs all have a closed form in both phases (narrow.py here, capture/narrow.py compiled), and keeps the others
 (a mesh part, a cylinder against a box: python-fcl) itself. The answers are the Python phase's: the same element
-pairs, tested in the same order with the same order of bodies, the same features (but for a box pair's, which
-name its clipped vertices by the lines they lie on: capture/boxes.py).
+pairs, tested in the same order with the same order of bodies (checked at every call of the clock's first 8 s:
+the same contacts within 6e-14 m), the same features but for a pair of boxes' (capture/boxes.py names a clipped
+vertex by the lines it lies on, an edge contact EDGE + 3 i + j), which key a contact as consistently.
 """
 from __future__ import annotations
 
