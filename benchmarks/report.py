@@ -238,6 +238,15 @@ def audio_table(rows: list) -> str:
                            g(r.get("rtf_with_simulation", math.nan), 3), r.get("status", "")] for r in rows])
 
 
+def commands_table(rows: list) -> str:
+    """Each shipped scene's whole `isaac run` against its budget (benchmarks/commands.py)."""
+    def verdict(r) -> str:
+        return "yes" if str(r.get("within")) == "True" else f"**no** ({float(r['wall_s']) / float(r['budget_s']):.1f}x)"
+    return table(["scene", "simulated (s)", "budget (s)", "wall (s), best", "runs (s)", "within"],
+                 [[r["scene"], g(float(r["simulated_s"]), 3), g(float(r["budget_s"]), 3), g(float(r["wall_s"]), 3),
+                   r.get("all_s", ""), verdict(r)] for r in rows])
+
+
 def profile_table(rows: list) -> str:
     out = []
     for scene in dict.fromkeys(r["scene"] for r in rows):
@@ -254,6 +263,7 @@ def summarize(out: Path) -> tuple:
     scal, growth = _read(out, "scaling.csv"), _read(out, "scaling_growth.csv")
     stress, spec, imports = _read(out, "stress.csv"), _read(out, "specialization.csv"), _read(out, "imports.csv")
     audio, prof = _read(out, "audio.csv"), _read(out, "profile.csv")
+    commands = _read(out, "commands.csv")
     info_path = out / "run_info.json"
     info = json.loads(info_path.read_text()) if info_path.is_file() else {}
     present = {name: (out / name).is_file() for name in ("work_precision.csv", "work_precision.png",
@@ -278,7 +288,9 @@ def summarize(out: Path) -> tuple:
                 ("Stress suite", stress, lambda: stress_table(stress)),
                 ("Plan specialization", spec, lambda: specialization_table(spec, imports)),
                 ("Audio", audio, lambda: audio_table(audio)),
-                ("Profile: own time per function, share of a step", prof, lambda: profile_table(prof))]
+                ("Profile: own time per function, share of a step", prof, lambda: profile_table(prof)),
+                ("Commands: each shipped scene's whole `isaac run`, cached, against 0.5 s + simulated time / 20",
+                 commands, lambda: commands_table(commands))]
     for title, rows, make in sections:
         if rows:
             parts += [f"### {title}\n", make()]

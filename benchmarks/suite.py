@@ -4,7 +4,8 @@ updates its part of the summary and keeps the others.
 
     isaac bench                      the full suite into benchmarks/results/ (and docs/performance.md's tables)
     isaac bench --quick              a few minutes: fewer steps and sizes, into benchmarks/results/quick/
-    isaac bench --only stress        one section (work_precision, scaling, stress, specialization, audio, profile)
+    isaac bench --only stress        one section (work_precision, scaling, stress, specialization, audio, profile,
+                                     contact, commands)
     isaac bench --out DIR            elsewhere (docs/performance.md is only rewritten for the default folder)
 
 Also `python -m benchmarks.suite ...` with the same options. Exit 0 when every checked property holds (peer
@@ -32,7 +33,8 @@ from . import common  # noqa: E402
 
 # the sections in running order, and the module of each (with run(quick, out) -> dict)
 SECTION_MODULES = {"work_precision": "work_precision", "scaling": "scaling", "stress": "stress",
-                   "specialization": "specialization", "audio": "audio_rtf", "profile": "profiling", "contact": "contact"}
+                   "specialization": "specialization", "audio": "audio_rtf", "profile": "profiling", "contact": "contact",
+                   "commands": "commands"}
 SECTIONS = tuple(SECTION_MODULES)
 DOC = common.REPO / "docs" / "performance.md"
 

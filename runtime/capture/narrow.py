@@ -35,6 +35,7 @@ from .boxes import box_box, box_plane, capsule_box, sphere_box
 from .common import (clamp, closest_on_segment, col3, emit, flip, perpendicular, plane_of, segment, segment_segment,
                      spheres, unit3)
 from .cylinders import cylinder_box, cylinder_capsule, cylinder_cylinder
+from .kinds import closed_form  # noqa: F401 (the pairs pair_contacts handles, for its callers)
 
 # cosines closer to 1 than this count as parallel segments (a capsule lying along another: two points)
 PARALLEL_COS = 1.0 - 1e-6
@@ -209,17 +210,6 @@ def pair_contacts(shapes, a, b, y, R, margin, point, normal, depth, feature, fir
     if count > 0:
         flip(normal, first, count, capacity)
     return max(count, 0)
-
-
-_HANDLED = {(SHAPE_SPHERE, k) for k in (SHAPE_SPHERE, SHAPE_PLANE, SHAPE_BOX, SHAPE_CAPSULE, SHAPE_CYLINDER)} | {
-    (SHAPE_BOX, SHAPE_BOX), (SHAPE_BOX, SHAPE_PLANE), (SHAPE_CAPSULE, SHAPE_CAPSULE), (SHAPE_CAPSULE, SHAPE_PLANE),
-    (SHAPE_CAPSULE, SHAPE_BOX), (SHAPE_CYLINDER, SHAPE_PLANE), (SHAPE_CYLINDER, SHAPE_BOX),
-    (SHAPE_CYLINDER, SHAPE_CYLINDER), (SHAPE_CYLINDER, SHAPE_CAPSULE)}
-
-
-def closed_form(kind_a: int, kind_b: int) -> bool:
-    """Whether pair_contacts handles a pair of shape kinds (in either order)."""
-    return (int(kind_a), int(kind_b)) in _HANDLED or (int(kind_b), int(kind_a)) in _HANDLED
 
 
 # ---- bounds ------------------------------------------------------------------------------------------------

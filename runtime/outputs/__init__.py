@@ -107,13 +107,28 @@ def write_json(path: Path, data) -> None:
     (events.json) is written one item a line: a run's thousands of contact events in a third of the time of the
     indented form (the standard library's encoder is compiled only for the unindented one), and one event a line
     to read or grep."""
-    data = finite_or_null(data)
-    if isinstance(data, list):
-        encode = json.JSONEncoder(sort_keys=True, allow_nan=False).encode
-        text = "[\n" + ",\n".join(map(encode, data)) + "\n]" if data else "[]"
-    else:
-        text = json.dumps(data, indent=1, sort_keys=True, allow_nan=False)
+    try:  # (a run's figures are finite but for a blow-up's: written as they are, numpy's made plain on the way)
+        text = _json_text(data)
+    except ValueError:  # a NaN or an infinity, which strict JSON refuses: null
+        text = _json_text(finite_or_null(data))
     write_atomic(path, (text + "\n").encode())
+
+
+def _json_text(data) -> str:
+    """The JSON of data (write_json's layout); ValueError at a NaN or an infinity. The encoder's `default` makes
+    numpy's scalars and arrays plain as it meets them (`_plain`), so that the figures are walked once, by the
+    standard library's compiled encoder, instead of copied first (events.json: 0.13 s of a 12,700-event run)."""
+    if isinstance(data, list):
+        encode = json.JSONEncoder(sort_keys=True, allow_nan=False, default=_plain).encode
+        return "[\n" + ",\n".join(map(encode, data)) + "\n]" if data else "[]"
+    return json.dumps(data, indent=1, sort_keys=True, allow_nan=False, default=_plain)
+
+
+def _plain(value):
+    """A numpy value the JSON encoder cannot take as it is, as Python's (numpy's floats are Python floats)."""
+    if isinstance(value, (np.bool_, np.integer, np.floating, np.ndarray)):
+        return value.tolist()
+    raise TypeError(f"cannot write {type(value).__name__} as JSON")
 
 
 def finite_or_null(value):

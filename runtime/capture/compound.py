@@ -1,0 +1,169 @@
+"""Compiled narrow phase of a pair of bodies of which one at least is compound (made of parts): each part of one
+against each part (or the shape) of the other, with the closed-form tests of narrow.py (boxes.py, cylinders.py),
+at the part's world pose. runtime/collide/compound.py calls it for the exact path's looks; it is the Python
+phase's CompoundPairs, compiled, for the pairs of parts that have a closed form there.
+
+    count, best = compound_pair(parts, poses, x, R, i, j, margin, mode, known, out, work)
+
+parts (`Parts`): the elements of the scene (collide/shapes.py Elements: entries 0..n-1 the bodies' own shapes, then
+the parts), as plain arrays: shapes (model.Shapes), owner, index (the part's number in its body, -1: a body's own
+shape), offset (E,3) and turn (E,3,3) in the body's frame, first and count (n,) each body's parts, order (7,7)
+the Python phase's order of a pair of kinds (KEEP: the test is written for (a, b), SWAP: for (b, a)).
+poses (`Poses`): scratch, each element's world position (E,3), rotation (E,3,3) and box (E,6), and the gaps of one
+pair's element pairs (G,). x (n,3), R (n,3,3): the bodies' poses.
+
+mode CONTACTS: the contacts of every element pair whose boxes, grown by the margin, overlap, in the order of
+the Python phase (i's elements, then j's), into out (`Found`): point, normal, depth, feature (encoded with both
+parts' numbers, collide/shapes.py PART_SHIFT), a and b (the bodies, in the order of their test); returns their
+count (beyond capacity: the caller grows `out` and calls again) and 0.
+mode NEAREST: the signed distance of the two bodies (margin inf: every test gives its closest feature), the
+element pairs taken in the order of their boxes' gap, a lower bound of their distance, up to the first gap beyond
+the nearest distance found; contacts whose feature is in `known` (sorted) are left out. Returns (1 with the
+feature's point in out.point[0], or 0 with none, and the distance, inf with none).
+"""
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+from ..core.jit import entry, kernel
+from ..core.model import SHAPE_PLANE
+from .narrow import bounds, pair_contacts
+
+CONTACTS, NEAREST = 0, 1
+# the order of a pair of kinds in the Python phase's table (collide/narrow.py closed_form)
+KEEP, SWAP, NO_TEST = 0, 1, 2
+# a feature names its parts: local | (part_a + 1) << PART_SHIFT | (part_b + 1) << (PART_SHIFT + PART_BITS)
+PART_SHIFT, PART_BITS = 22, 16
+
+Parts = namedtuple("Parts", "shapes owner index offset turn first count order")
+Poses = namedtuple("Poses", "x R box gap")
+Found = namedtuple("Found", "point normal depth feature a b")
+
+
+@kernel
+def _pose(parts, poses, x, R, body):
+    """The world poses of a body's elements, X = x + R offset, RX = R turn, and their boxes."""
+    first, count = _elements(parts, body)
+    for e in range(first, first + count):
+        for r in range(3):
+            # (R offset)_r = sum_k R_rk offset_k
+            poses.x[e, r] = x[body, r] + (R[body, r, 0] * parts.offset[e, 0] + R[body, r, 1] * parts.offset[e, 1]
+                                          + R[body, r, 2] * parts.offset[e, 2])
+            for c in range(3):
+                poses.R[e, r, c] = (R[body, r, 0] * parts.turn[e, 0, c] + R[body, r, 1] * parts.turn[e, 1, c]
+                                    + R[body, r, 2] * parts.turn[e, 2, c])
+        bounds(parts.shapes, e, poses.x, poses.R, poses.box)
+
+
+@kernel
+def _elements(parts, body):
+    """(first, count) of a body's elements: its parts, or itself."""
+    if parts.count[body] > 0:
+        return parts.first[body], parts.count[body]
+    return body, 1
+
+
+@kernel
+def _gap(parts, poses, a, b, grow):
+    """A lower bound of the distance of elements a and b: the largest gap of their boxes along a world axis, less
+    twice the margin they grow by; -inf with a plane (its box is infinite)."""
+    if parts.shapes.kind[a] == SHAPE_PLANE or parts.shapes.kind[b] == SHAPE_PLANE:
+        return -math.inf
+    gap = -math.inf
+    for k in range(3):
+        gap = max(gap, max(poses.box[b, k] - poses.box[a, 3 + k], poses.box[a, k] - poses.box[b, 3 + k]))
+    return gap - 2.0 * grow
+
+
+@kernel
+def _test(parts, poses, a, b, margin, out, first, work):
+    """The contacts of elements a and b at slots first.. of out, in the order of the Python phase's test, their
+    features encoded with the parts and their bodies set; returns their count."""
+    if parts.order[parts.shapes.kind[a], parts.shapes.kind[b]] == SWAP:
+        a, b = b, a
+    capacity = len(out.depth)
+    count = pair_contacts(parts.shapes, a, b, poses.x, poses.R, margin, out.point, out.normal, out.depth,
+                          out.feature, first, capacity, work)
+    parts_ab = ((parts.index[a] + 1) << PART_SHIFT) | ((parts.index[b] + 1) << (PART_SHIFT + PART_BITS))
+    for k in range(first, min(first + count, capacity)):
+        out.feature[k] = out.feature[k] | parts_ab
+        out.a[k], out.b[k] = parts.owner[a], parts.owner[b]
+    return count
+
+
+@kernel
+def _contacts(parts, poses, i, j, margin, out, work):
+    """Mode CONTACTS (module docstring): the element pairs whose grown boxes overlap, i's elements first."""
+    fi, ci = _elements(parts, i)
+    fj, cj = _elements(parts, j)
+    grow = margin if math.isfinite(margin) else 0.0
+    found = 0
+    for a in range(fi, fi + ci):
+        for b in range(fj, fj + cj):
+            # (margin inf: every element pair, each test then gives its closest feature)
+            if not math.isfinite(margin) or _gap(parts, poses, a, b, grow) <= 0.0:
+                found += _test(parts, poses, a, b, margin, out, found, work)
+    return found
+
+
+@kernel
+def _is_known(known, feature):
+    """Whether feature is in the sorted array known (binary search)."""
+    lo, hi = 0, len(known)
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if known[mid] < feature:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo < len(known) and known[lo] == feature
+
+
+@kernel
+def _next_nearest(gaps, count):
+    """The untested element pair of least gap (the first of equal ones, as a stable sort takes them), or -1."""
+    chosen, least = -1, math.inf
+    for k in range(count):
+        if gaps[k] < least:
+            chosen, least = k, gaps[k]
+    return chosen
+
+
+@kernel
+def _nearest(parts, poses, i, j, known, out, work):
+    """Mode NEAREST (module docstring): (1 or 0, the signed distance); the nearest feature's point in out.point[0]."""
+    fi, ci = _elements(parts, i)
+    fj, cj = _elements(parts, j)
+    for a in range(ci):
+        for b in range(cj):
+            poses.gap[a * cj + b] = _gap(parts, poses, fi + a, fj + b, 0.0)
+    best, where = math.inf, (0.0, 0.0, 0.0)
+    found = 0
+    for _ in range(ci * cj):
+        k = _next_nearest(poses.gap, ci * cj)
+        # no element pair further on can come nearer than its boxes' gap (a tested pair's gap is set to inf)
+        if k < 0 or poses.gap[k] > best:
+            break
+        poses.gap[k] = math.inf
+        count = min(_test(parts, poses, fi + k // cj, fj + k % cj, math.inf, out, 0, work), len(out.depth))
+        deepest, depth = -1, -math.inf
+        for c in range(count):
+            if not _is_known(known, out.feature[c]) and out.depth[c] > depth:
+                deepest, depth = c, out.depth[c]
+        if deepest >= 0 and -depth < best:
+            best, found = -depth, 1
+            where = (out.point[deepest, 0], out.point[deepest, 1], out.point[deepest, 2])
+    for c in range(3):
+        out.point[0, c] = where[c]
+    return found, best
+
+
+@entry
+def compound_pair(parts, poses, x, R, i, j, margin, mode, known, out, work):
+    """The contacts (mode CONTACTS) or the nearest feature (NEAREST) of bodies i and j (module docstring)."""
+    _pose(parts, poses, x, R, i)
+    _pose(parts, poses, x, R, j)
+    if mode == NEAREST:
+        return _nearest(parts, poses, i, j, known, out, work)
+    return _contacts(parts, poses, i, j, margin, out, work), 0.0
