@@ -26,7 +26,8 @@ from isaac_ir.diagnostics import counted
 from ..signals import asset_folders
 from .narrow import needs_fcl
 from .pairs import count_pairs, excluded_keys, exclusion_pairs, pair_keys
-from .shapes import KIND_NAMES, build_table
+from .shapes import KIND_NAMES
+from .table import build_table
 
 COMPOUND = -2  # the plan's count of compound bodies (not a shape kind of the table)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .shapes import CORNER_SIGNS
+from .shapes import CORNER_SIGNS, segment
 
 # an edge-edge axis wins over the best face axis only if it separates more by this fraction of the smaller box
 EDGE_PREFERENCE = 1e-3
@@ -72,7 +72,6 @@ def capsule_box(table, a, b, x, R, margin):
     """The two end spheres, plus the point of the axis segment nearest the box when it lies inside the segment
     (a capsule across a box's edge). The distance from the segment to the box is convex along the segment, so
     a golden-section search finds that point."""
-    from .narrow import segment
 
     r, xb, Rb, hb = table.radius[a], x[b], R[b], table.half[b]
     s0, s1 = segment(table, a, x, R)

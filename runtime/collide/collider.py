@@ -107,7 +107,6 @@ class Collider:
 
     def start(self) -> None:
         """The contacts the run starts with (a stack standing on a floor)."""
-        s = self.sim.state
         self._save_start()
         self._keep_contacts()
 

@@ -21,46 +21,11 @@ import math
 
 import numpy as np
 
-from ..core.rotation import quat_to_matrix
 from .narrow import closed_form
-from .shapes import BOX, NONE, PART_BITS, PART_SHIFT, PLANE, Elements, boxes_of, empty_table, fill
+from .shapes import PART_BITS, PART_SHIFT, PLANE, Elements, boxes_of
 
 EMPTY = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64),
          np.zeros(0, np.int64))
-
-
-def build_elements(scene, table, compounds: list, folders) -> Elements:
-    """The elements of a scene whose bodies `compounds` are made of parts; each compound's entry in the body
-    table becomes the box about its centre of mass that holds its parts."""
-    n = len(scene.bodies)
-    parts = [(i, k, part) for i in compounds for k, part in enumerate(scene.bodies[i].shape.parts)]
-    count = n + len(parts)
-    el = empty_table(count, table.meshes)  # the meshes list is shared: a mesh index means one mesh in both
-    for name in ("kind", "radius", "half", "half_length", "normal", "centre", "thin", "mesh"):
-        getattr(el, name)[:n] = getattr(table, name)
-    owner = np.concatenate([np.arange(n), np.array([i for i, _, _ in parts], np.int64)])
-    index = np.concatenate([np.full(n, -1, np.int64), np.array([k for _, k, _ in parts], np.int64)])
-    offset, turn = np.zeros((count, 3)), np.tile(np.eye(3), (count, 1, 1))
-    first, counts = np.zeros(n, np.int64), np.zeros(n, np.int64)
-    loaded = {}
-    for e, (i, k, part) in enumerate(parts, start=n):
-        fill(el, e, part.shape, folders, loaded=loaded)
-        offset[e] = np.asarray(scene.bodies[i].shape.offset, float) + np.asarray(part.position, float)
-        q = np.asarray(part.orientation, float)
-        turn[e] = quat_to_matrix(q / np.linalg.norm(q))
-        if k == 0:
-            first[i] = e
-        counts[i] += 1
-    elements = Elements(el, owner, index, offset, turn, first, counts, [p.name for _, _, p in parts])
-    for i in compounds:
-        mine = elements.of(i)
-        # the parts' boxes in the body frame, then the box about the centre of mass that holds them all
-        lo, hi = boxes_of(el, mine, offset[mine], turn[mine], 0.0)
-        el.kind[i] = NONE
-        table.kind[i], table.radius[i], table.half_length[i], table.centre[i] = BOX, 0.0, 0.0, 0.0
-        table.half[i] = np.maximum(np.abs(lo), np.abs(hi)).max(axis=0)
-        table.thin[i] = float(el.thin[mine].min())
-    return elements
 
 
 def encode(local, part_a, part_b):

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .boxes import box_box, box_plane, capsule_box, sphere_box
-from .shapes import BOX, CAPSULE, CYLINDER, MESH, PLANE, SPHERE
+from .shapes import BOX, CAPSULE, CYLINDER, MESH, PLANE, SPHERE, segment
 
 UP = np.array([0.0, 1.0, 0.0])
 # cosines closer to 1 than this count as parallel segments (a capsule lying along another)
@@ -48,12 +48,6 @@ def _spheres(ca, ra, cb, rb, feature=0):
 def plane_of(table, b, x, R):
     """World normal and a point of plane body b."""
     return R[b] @ table.normal[b], x[b]
-
-
-def segment(table, i, x, R):
-    """End points of the axis segment of a capsule or cylinder."""
-    half = R[i][:, 2] * table.half_length[i]
-    return x[i] - half, x[i] + half
 
 
 def closest_on_segment(p, s0, s1):

@@ -108,54 +108,6 @@ def empty_table(n: int, meshes: list | None = None) -> ShapeTable:
                       np.zeros((n, 3)), np.full(n, np.inf), np.full(n, -1, np.int64), [] if meshes is None else meshes)
 
 
-def build_table(scene, collidable: list, scene_folder=None) -> ShapeTable:
-    """The table for the scene's bodies; only bodies in `collidable` get a kind. Meshes are loaded here (and
-    `meshes`, with its python-fcl import, is imported only when one is present)."""
-    table = empty_table(len(scene.bodies))
-    compounds = [i for i in collidable if scene.bodies[i].shape.type == "compound"]
-    for i in collidable:
-        shape = scene.bodies[i].shape
-        if shape.type != "compound":  # a compound's box is made from its parts (compound.py)
-            fill(table, i, shape, scene_folder, shape.offset)
-    if compounds:
-        from .compound import build_elements
-
-        table.elements = build_elements(scene, table, compounds, scene_folder)
-    return table
-
-
-def fill(table: ShapeTable, i: int, shape, folders, offset=(0.0, 0.0, 0.0), loaded: dict | None = None) -> None:
-    """Entry i of the table from an IR shape in its own frame (a mesh's vertices moved by offset); `loaded`
-    (file, scale, offset) -> mesh index keeps one copy of a mesh many parts share."""
-    kind = KINDS[shape.type]
-    table.kind[i] = kind
-    r = shape.radius or 0.0
-    table.radius[i] = r
-    if kind == SPHERE:
-        table.half[i] = r
-    elif kind == BOX:
-        table.half[i] = 0.5 * np.asarray(shape.size, float)
-    elif kind in (CAPSULE, CYLINDER):
-        table.half_length[i] = 0.5 * shape.length
-        table.half[i] = (r, r, 0.5 * shape.length + (r if kind == CAPSULE else 0.0))
-    elif kind == PLANE:
-        normal = np.asarray(shape.normal or (0.0, 1.0, 0.0), float)
-        table.normal[i] = normal / np.linalg.norm(normal)
-        table.half[i] = np.inf
-    elif kind == MESH:
-        from .meshes import load_shape
-
-        key = (shape.file, shape.scale, tuple(offset))
-        if loaded is None or key not in loaded:
-            table.meshes.append(load_shape(shape.file, shape.scale, folders, offset))
-            if loaded is not None:
-                loaded[key] = len(table.meshes) - 1
-        table.mesh[i] = loaded[key] if loaded is not None else len(table.meshes) - 1
-        mesh = table.meshes[table.mesh[i]]
-        table.half[i], table.centre[i] = mesh.half, mesh.centre
-    table.thin[i] = float(np.min(table.half[i]))
-
-
 def bounding_boxes(table: ShapeTable, index: np.ndarray, x: np.ndarray, R: np.ndarray, margin: float):
     """World axis-aligned boxes (lo, hi), each (k,3), of the bodies `index` (not planes) at poses x (n,3),
     R (n,3,3), grown by margin. A box of half-extents h turned by R has world half-extents |R| h; a cylinder
@@ -187,3 +139,9 @@ def reach(table: ShapeTable) -> np.ndarray:
     finite = np.isfinite(table.half).all(axis=1)
     box = np.where(finite, np.linalg.norm(np.nan_to_num(table.half, posinf=0.0), axis=1), 0.0)
     return box + np.linalg.norm(table.centre, axis=1) + table.radius + table.half_length
+
+
+def segment(table, i, x, R):
+    """End points of the axis segment of a capsule or cylinder."""
+    half = R[i][:, 2] * table.half_length[i]
+    return x[i] - half, x[i] + half

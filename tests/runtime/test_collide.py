@@ -14,7 +14,8 @@ import pytest
 from isaac_lang.load import load_scene, load_text
 from isaac_runtime.collide import lcp
 from isaac_runtime.collide.meshes import load_shape, read_mesh
-from isaac_runtime.collide.narrow import closed_form, needs_fcl, segment
+from isaac_runtime.collide.narrow import closed_form, needs_fcl
+from isaac_runtime.collide.shapes import segment
 from isaac_runtime.collide.pairs import BroadPhase
 from isaac_runtime.collide.response import Bodies, Contacts, Joints, Response
 from isaac_runtime.collide.shapes import BOX, CAPSULE, CYLINDER, PLANE, SPHERE, ShapeTable, bounding_boxes
