@@ -1,8 +1,8 @@
 """Signals from sound: the envelope of a recorded breath and a live microphone, as functions of time.
 
 A wind's speed may be written `envelope("assets/breath.wav", attack = 20 ms, release = 300 ms) * 4 m/s` or
-`mic() * 4 m/s`. The envelope follower (docs/design/sound.md#section-9) is a one-pole filter on |x| with separate attack and release
-time constants:
+`mic() * 4 m/s`. The envelope follower (docs/design/sound.md#section-9) is a one-pole filter on |x| with separate attack
+and release time constants:
 
     y[n] = y[n-1] + a (|x[n]| - y[n-1]),   a = 1 - exp(-1 / (tau fs)),   tau = attack if |x[n]| > y[n-1]
                                                                            else release

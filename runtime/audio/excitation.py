@@ -1,7 +1,7 @@
 """Audio stage, excitation: how long a contact lasts, and the force pulse it puts into the modes.
 
-A real contact lasts a time tau, which low-passes the excitation (docs/design/sound.md#section-5). The pulse is a half-sine of
-length tau: its spectrum falls by 3 dB near 0.59 / tau and has its first null at 1.5 / tau.
+A real contact lasts a time tau, which low-passes the excitation (docs/design/sound.md#section-5). The pulse is a
+half-sine of length tau: its spectrum falls by 3 dB near 0.59 / tau and has its first null at 1.5 / tau.
 
 Contact duration, in order of preference:
 - Hertz, when at least one of the two surfaces is curved (sphere, cylinder, capsule) and the materials give

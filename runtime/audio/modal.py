@@ -20,8 +20,8 @@ The formulas, and where each holds (docs/sound.md has the same table):
   Lamb's (1882) frequency equation in spherical Bessel functions, eta = omega a / c_T. Exact for a sphere;
   for a cube or a thick cylinder it is a rough estimate (within ~20 % of the lowest mode).
 
-Damping (docs/design/sound.md#section-3): Rayleigh d_n = (alpha + beta w_n^2) / 2; internal friction d_n = pi f_n tan(phi);
-a per-mode RT60, d = 6.91 / RT60 (ln 1000 = 6.91: -60 dB).
+Damping (docs/design/sound.md#section-3): Rayleigh d_n = (alpha + beta w_n^2) / 2; internal friction d_n = pi f_n
+tan(phi); a per-mode RT60, d = 6.91 / RT60 (ln 1000 = 6.91: -60 dB).
 """
 from __future__ import annotations
 

@@ -116,7 +116,8 @@ class Hit:
     parts: dict = field(default_factory=dict)  # body -> the part of it struck (compound bodies only)
 
     def values(self) -> dict:
-        """The event signals of docs/design/sound.md#section-1 at this hit (distance and wind speed are added by the renderer)."""
+        """The event signals of docs/design/sound.md#section-1 at this hit (distance and wind speed are added by the
+        renderer)."""
         return {"impulse": self.impulse, "speed": self.normal_speed, "normal_force": self.impulse / self.tau,
                 "t": self.time}
 

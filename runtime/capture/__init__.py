@@ -1,6 +1,6 @@
-"""The capturing contact step (docs/design/physics.md section 5b): impacts, restitution and Coulomb friction of every contact solved at
-velocity level in each step, inside the compiled loop, for scenes whose contacts change too often for the exact
-path (runtime/collide: each impact located in time, each change of the contact set handed back to Python).
+"""The capturing contact step (docs/design/physics.md section 5b): impacts, restitution and Coulomb friction of every
+contact solved at velocity level in each step, inside the compiled loop, for scenes whose contacts change too often for
+the exact path (runtime/collide: each impact located in time, each change of the contact set handed back to Python).
 
     broad.py    world boxes grown by each body's travel, sorted along x, swept
     narrow.py   closed-form contact points of a pair (boxes.py: box-box)

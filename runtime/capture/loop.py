@@ -1,5 +1,6 @@
 """The capturing step loop, compiled: every step finds its contacts and solves them at velocity level with the
-forces, so contacts that appear, part, stick or slide never leave the loop (docs/design/physics.md section 5b, Moreau-Jean):
+forces, so contacts that appear, part, stick or slide never leave the loop (docs/design/physics.md section 5b,
+Moreau-Jean):
 
     1. forces at the step's start; v- = v + h F / m, w- = w + h I^-1 tau       (kick)
     2. broad phase (broad.py), narrow phase of every candidate pair (narrow.py), with the gap each pair can close

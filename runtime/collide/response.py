@@ -1,4 +1,5 @@
-"""Impulses (Hahn 1988; Moore & Wilhelms 1988), solved together with the active joint rows (docs/design/physics.md section 5).
+"""Impulses (Hahn 1988; Moore & Wilhelms 1988), solved together with the active joint rows (docs/design/physics.md
+section 5).
 
 Rows. A contact c between bodies a and b, normal n (from b to a), arms r_a = p - x_a, r_b = p - x_b, has a
 normal row and, with friction, two tangent rows, each direction d with Jacobian blocks

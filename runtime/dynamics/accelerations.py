@@ -1,6 +1,7 @@
-"""The dynamics plan's right-hand side, compiled: accelerations of every body with Lagrange multipliers.
+"""The dynamics plan's right-hand side, compiled: accelerations of every body with Lagrange multipliers
+(docs/design/physics.md section 2).
 
-    M a = F + J^T lambda,   (J M^-1 J^T) lambda = -bias - J M^-1 F - [kd (J v + ct) + ks C]   (docs/design/physics.md section 2)
+    M a = F + J^T lambda,   (J M^-1 J^T) lambda = -bias - J M^-1 F - [kd (J v + ct) + ks C]
 
 F includes the friction of sliding contacts, which depends on their lambda_n (core/contact.py).
 

@@ -11,8 +11,8 @@ Both sources hand blocks of BLOCK_SECONDS to `Breath.feed(block, captured)`, `ca
 block's first sample: a device through its callback (sounddevice, imported only here and only then), a file
 through a thread that hands on each block when the wall clock reaches the block's end, as a device would (the
 file starts at `at`, so that its second 2 is the run's second 2; after its end, silence). `feed` runs every
-follower over the block: docs/design/sound.md's envelope follower (runtime/signals.py), one per (attack, release) a wind asks
-for, at the input's own rate, so that a file fed live gives the envelope `envelope("file")` gives offline.
+follower over the block: docs/design/sound.md's envelope follower (runtime/signals.py), one per (attack, release) a wind
+asks for, at the input's own rate, so that a file fed live gives the envelope `envelope("file")` gives offline.
 
 The breath stands in for every recording a wind's speed follows: `envelope("any.wav", attack, release)` reads the
 follower with that attack and release, divided by a reference so that the breath's peak is 1 as the recording's

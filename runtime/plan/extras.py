@@ -2,10 +2,10 @@
 
     check_extras(plan, plots=True)      # raises MissingExtra (a SceneError: exit 2) naming what to install
 
-Each extra is imported only by the scenes and options that need it (docs/design/architecture.md, the plan): python-fcl for
-pairs without a closed-form test (meshes, cylinders against boxes), soundfile for sound (a core dependency, but
-its C library may still be missing), matplotlib for `--plots`, sounddevice for `--mic` (checked where the
-microphone is opened, isaac_runtime.signals).
+Each extra is imported only by the scenes and options that need it (docs/design/architecture.md, the plan): python-fcl
+for pairs without a closed-form test (meshes, cylinders against boxes), soundfile for sound (a core dependency, but its
+C library may still be missing), matplotlib for `--plots`, sounddevice for `--mic` (checked where the microphone is
+opened, isaac_runtime.signals).
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The procedural plan (docs/design/physics.md section 6): the dissertation's position-level method in the form position-based
-dynamics has today (XPBD with substeps, Mueller et al. 2020), compiled.
+"""The procedural plan (docs/design/physics.md section 6): the dissertation's position-level method in the form
+position-based dynamics has today (XPBD with substeps, Mueller et al. 2020), compiled.
 
     substep.py   one substep's three stages: move (with the free rigid body's exact invariants), put back
     project.py   the constraint stage: all rows at once (direct, the default) or Gauss-Seidel over instances

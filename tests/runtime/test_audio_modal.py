@@ -1,5 +1,6 @@
 """Modal sound (runtime/audio/modal.py, resonator.py, excitation.py) against closed forms and references:
-the free-free bar (docs/design/sound.md's oracle), Leissa's plates, Lamb's sphere, the two-pole recursion, decay slopes."""
+the free-free bar (docs/design/sound.md's oracle), Leissa's plates, Lamb's sphere, the two-pole recursion, decay
+slopes."""
 from __future__ import annotations
 
 import math

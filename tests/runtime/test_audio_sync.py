@@ -1,6 +1,6 @@
-"""Sample-accurate sound (docs/design/sound.md#test-2, "How to test sound" 2): an event at time t starts at sample round(t fs).
-The difference method: render with and without event i; the first sample of the difference above 1e-3 of its
-peak is the event's onset. On synthetic events, and on the scenes' own events (bar, cradle)."""
+"""Sample-accurate sound (docs/design/sound.md#test-2, "How to test sound" 2): an event at time t starts at sample
+round(t fs). The difference method: render with and without event i; the first sample of the difference above 1e-3 of
+its peak is the event's onset. On synthetic events, and on the scenes' own events (bar, cradle)."""
 from __future__ import annotations
 
 import dataclasses

@@ -485,7 +485,8 @@ def test_pgs_sweeps_agree_in_lists_and_in_arrays(monkeypatch):
 
 
 def test_single_impact_matches_the_textbook_impulse():
-    """docs/design/physics.md section 5: j = -(1 + e) vrel / (1/ma + 1/mb + n.((Ia^-1 (ra x n)) x ra) + n.((Ib^-1 (rb x n)) x rb))."""
+    """The textbook impulse (docs/design/physics.md section 5):
+    j = -(1 + e) vrel / (1/ma + 1/mb + n.((Ia^-1 (ra x n)) x ra) + n.((Ib^-1 (rb x n)) x rb))."""
     rng = np.random.default_rng(2)
     n = np.array([0.0, 1.0, 0.0])
     x = np.array([[0.1, 0.5, 0.0], [-0.2, -0.4, 0.1]])
