@@ -181,7 +181,8 @@ def _with_extension(name: str) -> str:
 
 
 # benchmarks/suite.py SECTIONS, repeated here so that building the parser imports nothing
-BENCH_SECTIONS = ("work_precision", "scaling", "stress", "specialization", "audio", "profile", "contact")
+# the sections of benchmarks/suite.py (not installed with the package: tests/test_bench_smoke.py holds them equal)
+BENCH_SECTIONS = ("work_precision", "scaling", "stress", "specialization", "audio", "profile", "contact", "commands")
 
 
 def run_options(sub: argparse.ArgumentParser) -> None:

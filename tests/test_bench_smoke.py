@@ -89,3 +89,10 @@ def test_every_benchmark_script_imports():
     folder = Path(cases.__file__).parent
     for path in sorted(folder.glob("*.py")):
         importlib.import_module(f"benchmarks.{path.stem}")
+
+
+def test_the_command_line_offers_every_section_of_the_suite():
+    from benchmarks import suite
+    from isaac.cli import BENCH_SECTIONS
+
+    assert tuple(BENCH_SECTIONS) == tuple(suite.SECTIONS)
