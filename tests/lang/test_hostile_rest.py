@@ -1,0 +1,100 @@
+"""Issue 31, the rest: expansion that stops early, big meshes, golden data of the wrong shape, `--set` names and
+values, and the inputs and outputs of fit, live and bench. Each test reproduces a hostile input and asserts a
+positioned exit 2 (or a clean exit 0) in little time."""
+from __future__ import annotations
+
+import re
+import time
+
+from isaac.cli import main
+
+BALL = "body ball sphere { radius 5 cm  mass 1 kg  at (0, 1, 0) m }"
+POSITIONED = re.compile(r"^\S+:\d+:\d+: error: ", re.MULTILINE)
+
+
+def _check(args, capsys):
+    started = time.monotonic()
+    code = main(args)
+    captured = capsys.readouterr()
+    return code, captured.out + captured.err, time.monotonic() - started
+
+
+# -- 1. expansion: a time budget, and a cycle that stops at once ------------------------------------------------
+
+def test_an_include_cycle_inside_nested_loops_stops_at_once(tmp_path, capsys):
+    (tmp_path / "a.isaac").write_text('scene s {\n  for i in 0 .. 100 { for j in 0 .. 100 { include "b.isaac" } }\n'
+                                      f"  {BALL}\n}}\n")
+    (tmp_path / "b.isaac").write_text('for k in 0 .. 100 { include "a.isaac" }\n')
+    code, output, seconds = _check(["check", str(tmp_path / "a.isaac")], capsys)
+    assert code == 2 and "include cycle: a.isaac -> b.isaac -> a.isaac" in output, output
+    assert re.search(r"b\.isaac:1:\d+: error: include cycle", output), output
+    assert seconds < 3, seconds
+
+
+def test_expansion_stops_at_its_time_budget_where_it_is(tmp_path, capsys):
+    scene = tmp_path / "s.isaac"
+    scene.write_text(f"scene s {{\n  for i in 0 .. 400 {{ for j in 0 .. 400 {{ let x = i * j + sin(i) }} }}\n"
+                     f"  {BALL}\n}}\n")
+    code, output, seconds = _check(["check", str(scene), "--expand-seconds", "0.05"], capsys)
+    assert code == 2 and "took more than 0.05 s; stopped here" in output, output
+    assert POSITIONED.search(output) and "--expand-seconds" in output, output
+    assert seconds < 3, seconds
+
+
+def test_expand_seconds_must_be_a_time_above_zero(tmp_path, capsys):
+    scene = tmp_path / "s.isaac"
+    scene.write_text(f"scene s {{ {BALL} }}\n")
+    for bad in ("0", "-1", "nan", "2 kg"):
+        try:
+            code = main(["check", str(scene), "--expand-seconds", bad])
+        except SystemExit as stop:
+            code = stop.code
+        assert code == 2, bad
+        assert "--expand-seconds" in capsys.readouterr().err
+
+
+# -- 2, 3. meshes: a budget of triangles, checked as the file is read; coordinates bounded --------------------
+
+MESH_BODY = 'scene s {{ body rock mesh {{ file "m.{ext}"  mass 1 kg  inertia (1, 1, 1) kg*m2 }} }}\n'
+
+
+def _grid_obj(triangles: int) -> str:
+    """An OBJ of a strip of at least `triangles` triangles, written fast."""
+    count = triangles // 2 + 1
+    vertices = "".join(f"v {i} 0 0\nv {i} 1 0\n" for i in range(count + 1))
+    faces = "".join(f"f {2 * i + 1} {2 * i + 2} {2 * i + 3}\nf {2 * i + 2} {2 * i + 4} {2 * i + 3}\n"
+                    for i in range(count))
+    return vertices + faces
+
+
+def test_a_mesh_of_too_many_triangles_is_refused_at_its_file_property_quickly(tmp_path, capsys):
+    from isaac_ir.meshfile import MAX_MESH_TRIANGLES
+
+    (tmp_path / "s.isaac").write_text(MESH_BODY.format(ext="obj"))
+    (tmp_path / "m.obj").write_text(_grid_obj(MAX_MESH_TRIANGLES + 10))
+    code, output, seconds = _check(["check", str(tmp_path / "s.isaac")], capsys)
+    assert code == 2 and f"more than {MAX_MESH_TRIANGLES} triangles" in output, output
+    assert re.search(r"s\.isaac:1:\d+: error: cannot use the mesh file `m.obj`", output), output
+    assert seconds < 5, seconds
+
+
+def test_a_binary_stl_of_too_many_triangles_is_refused_before_its_corners_are_merged(tmp_path, capsys):
+    import numpy as np
+
+    from isaac_ir.meshfile import MAX_MESH_TRIANGLES
+
+    count = MAX_MESH_TRIANGLES + 1
+    record = np.zeros(count, np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attr", "<u2")]))
+    record["corners"] = np.random.default_rng(1).random((count, 3, 3))
+    (tmp_path / "m.stl").write_bytes(b"\0" * 80 + count.to_bytes(4, "little") + record.tobytes())
+    (tmp_path / "s.isaac").write_text(MESH_BODY.format(ext="stl"))
+    code, output, _ = _check(["check", str(tmp_path / "s.isaac")], capsys)
+    assert code == 2 and f"more than {MAX_MESH_TRIANGLES} triangles" in output, output
+
+
+def test_mesh_coordinates_beyond_the_bound_of_lengths_say_so(tmp_path, capsys):
+    (tmp_path / "s.isaac").write_text(MESH_BODY.format(ext="obj"))
+    (tmp_path / "m.obj").write_text("v 0 0 0\nv 1e200 0 0\nv 0 1e200 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n")
+    code, output, _ = _check(["check", str(tmp_path / "s.isaac")], capsys)
+    assert code == 2 and "vertex 2 is at (1e+200, 0, 0): a coordinate beyond ±1e+12" in output, output
+    assert "flat" not in output and POSITIONED.search(output), output
