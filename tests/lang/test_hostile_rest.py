@@ -98,3 +98,58 @@ def test_mesh_coordinates_beyond_the_bound_of_lengths_say_so(tmp_path, capsys):
     code, output, _ = _check(["check", str(tmp_path / "s.isaac")], capsys)
     assert code == 2 and "vertex 2 is at (1e+200, 0, 0): a coordinate beyond ±1e+12" in output, output
     assert "flat" not in output and POSITIONED.search(output), output
+
+
+# -- 4. golden data: valid JSON of the wrong shape --------------------------------------------------------------
+
+def _recorded_goldens(tmp_path):
+    from . import hostile_beside
+
+    scene = tmp_path / "s.isaac"
+    scene.write_text(hostile_beside.GOLDEN_SCENE)
+    assert main(["golden", str(scene), "--update"]) == 0
+    return scene, sorted((tmp_path / "s.golden").glob("*.json"))
+
+
+def _reshaped(value, how: str):
+    """The golden value with its shape broken: a list for an object, strings for numbers, a key dropped."""
+    if how == "list":
+        return [value]
+    if how == "string":
+        return "x"
+    if how == "numbers as strings":
+        if isinstance(value, dict):
+            return {k: _reshaped(v, how) for k, v in value.items()}
+        if isinstance(value, list):
+            return [_reshaped(v, how) for v in value]
+        return "1" if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+    if how == "keys dropped" and isinstance(value, dict):
+        return {k: v for k, v in list(value.items())[1:]}
+    return {}
+
+
+def test_golden_data_of_the_wrong_shape_is_a_positioned_exit_2_never_a_bug(tmp_path, capsys):
+    import json
+
+    scene, files = _recorded_goldens(tmp_path)
+    capsys.readouterr()
+    for path in files:
+        original = path.read_text()
+        for how in ("list", "string", "numbers as strings", "keys dropped", "empty"):
+            path.write_text(json.dumps(_reshaped(json.loads(original), how)))
+            code, output, _ = _check(["golden", str(scene)], capsys)
+            assert code in (0, 2, 3), f"{path.name} {how}: exit {code}: {output[-1500:]}"
+            assert "Traceback" not in output and "internal error" not in output, output
+            if code == 2:
+                assert re.search(r"s\.golden/\w+\.json:\d+:\d+: error: ", output), f"{path.name} {how}: {output}"
+        path.write_text(original)
+    assert main(["golden", str(scene)]) == 0
+
+
+def test_golden_update_writes_over_goldens_of_the_wrong_shape(tmp_path, capsys):
+    scene, _ = _recorded_goldens(tmp_path)
+    (tmp_path / "s.golden" / "trajectory.json").write_text('{"time": "soon", "bodies": []}')
+    assert main(["golden", str(scene)]) == 2
+    assert "s.golden/trajectory.json:1:1: error: the golden file does not hold" in capsys.readouterr().err
+    assert main(["golden", str(scene), "--update"]) == 0
+    assert main(["golden", str(scene)]) == 0
