@@ -298,11 +298,13 @@ def _report_bug() -> int:
 
 
 def _overrides(args) -> dict:
+    from isaac_lang.overrides import clipped
+
     out = {}
     for item in args.set:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
-            raise SceneError([_usage_diagnostic(f"--set wants NAME=VALUE, got `{item}`")])
+            raise SceneError([_usage_diagnostic(f"--set wants NAME=VALUE, got `{clipped(item)}`")])
         out[name.strip()] = value.strip()
     return out
 

@@ -153,3 +153,34 @@ def test_golden_update_writes_over_goldens_of_the_wrong_shape(tmp_path, capsys):
     assert "s.golden/trajectory.json:1:1: error: the golden file does not hold" in capsys.readouterr().err
     assert main(["golden", str(scene), "--update"]) == 0
     assert main(["golden", str(scene)]) == 0
+
+
+# -- 5. --set: names and values bounded, refused naming --set ---------------------------------------------------
+
+SET_SCENE = f"let x = 1\nscene s {{ {BALL} }}\n"
+
+
+def test_a_set_name_too_long_or_not_a_name_is_refused_naming_set(tmp_path, capsys):
+    scene = tmp_path / "s.isaac"
+    scene.write_text(SET_SCENE)
+    for command in ("check", "run"):
+        for item, said in (("x" * 10_000 + "=1", "at most 64 characters"), ("1x=1", "is not a parameter's name"),
+                           ("x=" + "1+" * 10_000 + "1", "more than the 10000 a value may have")):
+            code, output, seconds = _check([command, str(scene), "--set", item], capsys)
+            assert code == 2 and output.startswith("--set:1:1: error: ") and said in output, output
+            assert len(output) < 600 and seconds < 5, output
+
+
+def test_a_set_value_with_a_nul_byte_or_beyond_a_double_is_positioned(tmp_path, capsys):
+    scene = tmp_path / "s.isaac"
+    scene.write_text(SET_SCENE)
+    for value in ("1\0 2", "1e400", "\0"):
+        code, output, _ = _check(["check", str(scene), "--set", f"x={value}"], capsys)
+        assert code == 2 and re.search(r"^--set x=.*:1:\d+: error: ", output, re.MULTILINE), output
+
+
+def test_a_sweep_set_name_too_long_is_refused_naming_set(tmp_path, capsys):
+    scene = tmp_path / "s.isaac"
+    scene.write_text(SET_SCENE)
+    code, output, _ = _check(["sweep", str(scene), "--set", "x" * 10_000 + "=1,2"], capsys)
+    assert code == 2 and "--set: a parameter's name is at most 64 characters" in output and len(output) < 600
