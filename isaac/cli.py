@@ -95,7 +95,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="a few minutes: fewer steps, sizes and repeats, into benchmarks/results/quick/")
     bench.add_argument("--only", action="append", metavar="NAME", choices=BENCH_SECTIONS,
                        help=f"one section (repeatable): {', '.join(BENCH_SECTIONS)}")
-    bench.add_argument("--out", default=None, help="output folder (default benchmarks/results[/quick])")
+    bench.add_argument("--out", default=None, type=opt.output_folder,
+                       help="output folder (default benchmarks/results[/quick])")
     bench.add_argument("--docs", action=argparse.BooleanOptionalAction, default=None,
                        help="rewrite the tables of docs/performance.md (default: full runs into benchmarks/results)")
     golden_command(commands)

@@ -12,9 +12,16 @@ BALL = "body ball sphere { radius 5 cm  mass 1 kg  at (0, 1, 0) m }"
 POSITIONED = re.compile(r"^\S+:\d+:\d+: error: ", re.MULTILINE)
 
 
+def _exit_code(args) -> int:
+    try:
+        return main(args)
+    except SystemExit as stop:  # argparse's refusal of an option
+        return stop.code
+
+
 def _check(args, capsys):
     started = time.monotonic()
-    code = main(args)
+    code = _exit_code(args)
     captured = capsys.readouterr()
     return code, captured.out + captured.err, time.monotonic() - started
 
@@ -184,3 +191,101 @@ def test_a_sweep_set_name_too_long_is_refused_naming_set(tmp_path, capsys):
     scene.write_text(SET_SCENE)
     code, output, _ = _check(["sweep", str(scene), "--set", "x" * 10_000 + "=1,2"], capsys)
     assert code == 2 and "--set: a parameter's name is at most 64 characters" in output and len(output) < 600
+
+
+# -- 6. fit, live --mic FILE, bench: inputs and outputs checked before any work -------------------------------
+
+FIT_SCENE = """let speed = 2 m/s
+scene s {
+  time 0 s .. 0.5 s
+  body ball sphere { radius 5 cm  mass 1 kg  at (0, 1, 0) m  velocity (speed, 0, 0) }
+  vary speed in 1 m/s .. 5 m/s
+  goal hit: ball.position.x at 0.4 s = 1.2 m within 1 cm
+}
+"""
+
+
+def _no_search(monkeypatch):
+    import pytest
+
+    import isaac.fit.solve as solve
+
+    monkeypatch.setattr(solve, "find", lambda *a, **k: pytest.fail("the search started"))
+
+
+def test_fit_refuses_its_scene_and_options_before_the_search(tmp_path, capsys, monkeypatch):
+    _no_search(monkeypatch)
+    cases = {"no vary": (FIT_SCENE.replace("  vary speed in 1 m/s .. 5 m/s\n", ""), [], "no `vary`"),
+             "no goal": (FIT_SCENE.replace("  goal hit", "  # goal hit"), [], "no `goal`"),
+             "bounds reversed": (FIT_SCENE.replace("1 m/s .. 5 m/s", "5 m/s .. 1 m/s"), [], "the range is empty"),
+             "goal late": (FIT_SCENE.replace("at 0.4 s", "at 7 s"), [], "outside the scene's time"),
+             "too many workers": (FIT_SCENE, ["--workers", "100000"], "--workers 100000"),
+             "unknown scheduler": (FIT_SCENE, ["--scheduler", "gopher://x:1"], "unknown scheme")}
+    for name, (text, extra, said) in cases.items():
+        scene = tmp_path / "s.isaac"
+        scene.write_text(text)
+        code, output, _ = _check(["fit", str(scene), *extra], capsys)
+        assert code == 2 and said in output, f"{name}: {output}"
+        if "--" not in said and "scheme" not in said:
+            assert POSITIONED.search(output), f"{name}: {output}"
+
+
+def test_fit_refuses_an_output_folder_it_cannot_write_before_the_search(tmp_path, capsys, monkeypatch):
+    import pytest
+
+    import isaac.writable
+
+    _no_search(monkeypatch)
+    scene = tmp_path / "s.isaac"
+    scene.write_text(FIT_SCENE)
+    monkeypatch.setattr(isaac.writable, "_probe", lambda folder: f"`{folder}` is not writable (Read-only)")
+    code, output, _ = _check(["fit", str(scene), "--out", str(tmp_path / "out")], capsys)
+    assert code == 2 and "--out" in output and "is not writable" in output, output
+    assert _exit_code(["fit", str(scene), "--out", "/proc/self"]) == 2
+
+
+def test_a_rehearsal_file_that_is_not_usable_sound_is_refused_naming_mic(tmp_path):
+    import numpy as np
+    import pytest
+    import soundfile
+
+    from isaac.live_command import check_mic_file
+    from isaac_ir.diagnostics import SceneError
+
+    soundfile.write(tmp_path / "nan.wav", np.array([0.1, np.nan, 0.2] * 100), 8000, subtype="FLOAT")
+    soundfile.write(tmp_path / "empty.wav", np.zeros(0), 8000)
+    soundfile.write(tmp_path / "ok.wav", 0.3 * np.sin(np.arange(800) / 10), 8000)
+    (tmp_path / "text.wav").write_text("not audio\n")
+    import os
+
+    os.mkfifo(tmp_path / "pipe.wav")
+    for name, said in (("nan.wav", "is not a number"), ("empty.wav", "holds no samples"),
+                       ("text.wav", "cannot read it as sound"), ("pipe.wav", "FIFO"), ("none.wav", "")):
+        with pytest.raises(SceneError) as refused:
+            check_mic_file(str(tmp_path / name))
+        text = str(refused.value.diagnostics[0].message)
+        assert text.startswith("--mic `") and said in text, text
+    check_mic_file(str(tmp_path / "ok.wav"))
+    check_mic_file("a device name")  # no file, no sound suffix: a device, left to the live stage
+
+
+def test_a_rehearsal_file_of_too_many_samples_is_refused(tmp_path, monkeypatch):
+    import numpy as np
+    import pytest
+    import soundfile
+
+    import isaac.live_command as live
+    from isaac_ir.diagnostics import SceneError
+
+    soundfile.write(tmp_path / "long.wav", np.zeros((1000, 2)), 8000)
+    monkeypatch.setattr(live, "MAX_MIC_SAMPLES", 1000)
+    with pytest.raises(SceneError, match="2000 samples, more than the 1000"):
+        live.check_mic_file(str(tmp_path / "long.wav"))
+
+
+def test_bench_and_live_refuse_an_output_that_is_a_file(tmp_path, capsys):
+    (tmp_path / "f").write_text("a file")
+    (tmp_path / "s.isaac").write_text(FIT_SCENE)
+    for args in (["bench", "--quick", "--out", str(tmp_path / "f")],
+                 ["live", str(tmp_path / "s.isaac"), "--no-browser", "--out", str(tmp_path / "f")]):
+        assert _exit_code(args) == 2 and "--out" in capsys.readouterr().err
