@@ -64,18 +64,25 @@ def mesh_problem(name: str, folder, confinement) -> tuple | None:
         if not os.path.lexists(real):
             return None
         info = os.stat(real)
-        _checked(str(real), (info.st_mtime_ns, info.st_size, info.st_ino))
     except FileRefused as error:
         return error.message, error.hint
-    except (OSError, MeshFileError) as error:
-        return (getattr(error, "strerror", None) or str(error)), MESH_HINT
-    return None
+    except OSError as error:
+        return (error.strerror or str(error)), MESH_HINT
+    problem = _checked(str(real), (info.st_mtime_ns, info.st_size, info.st_ino))
+    return None if problem is None else (problem, MESH_HINT)
 
 
 @functools.lru_cache(maxsize=64)
-def _checked(path: str, stamp: tuple) -> None:
-    """read_mesh for its errors only, once per version of the file (a loop of 30 teeth reads one)."""
-    read_mesh(path)
+def _checked(path: str, stamp: tuple) -> str | None:
+    """What read_mesh finds wrong with the file, or None; once per version of the file, a refusal as well as an
+    acceptance (thirty bodies of one mesh, or a loop of 30 teeth, read it once)."""
+    try:
+        read_mesh(path)
+    except FileRefused as error:
+        return error.message
+    except (OSError, MeshFileError) as error:
+        return getattr(error, "strerror", None) or str(error)
+    return None
 
 
 def validate(vertices: np.ndarray, faces: np.ndarray) -> None:

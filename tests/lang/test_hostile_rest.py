@@ -289,3 +289,33 @@ def test_bench_and_live_refuse_an_output_that_is_a_file(tmp_path, capsys):
     for args in (["bench", "--quick", "--out", str(tmp_path / "f")],
                  ["live", str(tmp_path / "s.isaac"), "--no-browser", "--out", str(tmp_path / "f")]):
         assert _exit_code(args) == 2 and "--out" in capsys.readouterr().err
+
+
+# -- 2b. the viewer's geometry: bounded, simplified, said -------------------------------------------------------
+
+def _sphere(rings: int):
+    from isaac_runtime.export.geometry import TriMesh
+    import numpy as np
+
+    theta, phi = np.meshgrid(np.linspace(0, np.pi, rings), np.linspace(0, 2 * np.pi, 2 * rings), indexing="ij")
+    positions = np.stack([np.sin(theta) * np.cos(phi), np.cos(theta), np.sin(theta) * np.sin(phi)], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(rings - 1), np.arange(2 * rings - 1), indexing="ij")
+    a, b = i * 2 * rings + j, i * 2 * rings + j + 1
+    c, d = a + 2 * rings, b + 2 * rings
+    triangles = np.concatenate([np.stack([a, c, b], -1), np.stack([b, c, d], -1)]).reshape(-1, 3)
+    return TriMesh(positions, positions.copy(), triangles)
+
+
+def test_a_surface_beyond_its_share_of_the_viewer_is_simplified_and_said():
+    import numpy as np
+
+    from isaac_runtime.viewer.simplify import MIN_SHARE, triangle_share, within_share
+
+    mesh = _sphere(300)  # about 360,000 triangles
+    simplified, said = within_share(mesh, triangle_share(200))
+    assert len(simplified.triangles) <= max(MIN_SHARE, 1_000_000 // 200) < len(mesh.triangles)
+    assert said.startswith(f"{len(simplified.triangles)} of its {len(mesh.triangles)} triangles"), said
+    assert np.all(np.isfinite(simplified.positions)) and simplified.triangles.max() < len(simplified.positions)
+    assert np.allclose(np.linalg.norm(simplified.positions, axis=1), 1, atol=0.05)  # still the sphere
+    same, nothing = within_share(mesh, len(mesh.triangles))
+    assert same is mesh and nothing == ""
