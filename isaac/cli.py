@@ -45,6 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
                          help="override a parameter (a top-level `let`), e.g. --set length=2m")
         sub.add_argument("--max-items", type=opt.positive_int, default=None,
                          help="limit on declarations after loops and parts expand (default 200000)")
+        sub.add_argument("--expand-seconds", type=opt.positive_seconds, default=None, metavar="S",
+                         help="limit on the time includes, loops and parts take to expand (default 3)")
         sub.add_argument("--strict", action="store_true", help="warnings are errors (exit 2)")
         sub.add_argument("--include-path", action="append", default=[], type=opt.include_folder, metavar="DIR",
                          help="a folder besides the scene's own whose files it may include and name (repeatable)")
@@ -93,7 +95,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="a few minutes: fewer steps, sizes and repeats, into benchmarks/results/quick/")
     bench.add_argument("--only", action="append", metavar="NAME", choices=BENCH_SECTIONS,
                        help=f"one section (repeatable): {', '.join(BENCH_SECTIONS)}")
-    bench.add_argument("--out", default=None, help="output folder (default benchmarks/results[/quick])")
+    bench.add_argument("--out", default=None, type=opt.output_folder,
+                       help="output folder (default benchmarks/results[/quick])")
     bench.add_argument("--docs", action=argparse.BooleanOptionalAction, default=None,
                        help="rewrite the tables of docs/performance.md (default: full runs into benchmarks/results)")
     golden_command(commands)
@@ -297,11 +300,13 @@ def _report_bug() -> int:
 
 
 def _overrides(args) -> dict:
+    from isaac_lang.overrides import clipped
+
     out = {}
     for item in args.set:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
-            raise SceneError([_usage_diagnostic(f"--set wants NAME=VALUE, got `{item}`")])
+            raise SceneError([_usage_diagnostic(f"--set wants NAME=VALUE, got `{clipped(item)}`")])
         out[name.strip()] = value.strip()
     return out
 
@@ -338,10 +343,11 @@ def _check_scene_file(path: Path) -> None:
 
 
 def _limits(args):
-    """--max-items and --include-path as the front end's Limits."""
+    """--max-items, --expand-seconds and --include-path as the front end's Limits."""
     from isaac_lang.expand import Limits
 
-    return Limits(max_items=args.max_items or Limits.max_items, include_path=tuple(args.include_path or ()))
+    return Limits(max_items=args.max_items or Limits.max_items, include_path=tuple(args.include_path or ()),
+                  max_seconds=getattr(args, "expand_seconds", None) or Limits.max_seconds)
 
 
 def cmd_parse(args, sources) -> int:

@@ -12,6 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from isaac import options as opt
+from isaac.writable import check_output_folder
+from isaac_ir.diagnostics import Diagnostic, SceneError
 
 # the slider of a parameter spans [0, SLIDER_SPAN * value] (or [SLIDER_SPAN * value, 0] for a negative value)
 SLIDER_SPAN = 3.0
@@ -30,7 +32,7 @@ def add_parser(commands, scene_command) -> None:
     live.add_argument("--port", type=opt.port, default=None,
                       help="the page's port on 127.0.0.1 (default 8766, or a free one if taken; 0: any free one)")
     live.add_argument("--no-browser", dest="browser", action="store_false", help="do not open the page in a browser")
-    live.add_argument("--out", default=None, help="output folder (default out/<scene>/)")
+    live.add_argument("--out", default=None, type=opt.output_folder, help="output folder (default out/<scene>/)")
     live.add_argument("--solver", choices=("dynamics", "procedural", "auto"), default=None)
     live.add_argument("--step", type=opt.step_time, default=None, help="solver step, e.g. 1ms (bare: seconds)")
     live.add_argument("--no-viewer", dest="viewer", action="store_false", help="no viewer.html in the outputs")
@@ -46,13 +48,70 @@ def cmd_live(args, load, verbosity: int, default_out, check_until, overrides) ->
     loaded = load(args)
     check_until(args, loaded.scene)
     path = Path(args.scene)
-    options = LiveOptions(scene_path=path, out=Path(args.out) if args.out else default_out(args.scene),
+    out = Path(args.out) if args.out else default_out(args.scene)
+    check_output_folder(out, "--out")
+    if args.mic:
+        check_mic_file(args.mic)
+    options = LiveOptions(scene_path=path, out=out,
                           overrides=overrides, solver=args.solver, step=args.step, until=args.until,
                           port=args.port, browser=args.browser, mic=args.mic, sliders=sliders(path, overrides),
                           viewer=args.viewer, verbosity=verbosity, scene_warnings=tuple(loaded.warnings),
                           replan=lambda changed: plan_file(path, changed, solver=args.solver, step=args.step,
                                                            until=args.until))
     return run_live(loaded.scene, options)
+
+
+# the most samples (frames x channels) of a rehearsal's file: 7.5 minutes of 44.1 kHz stereo, 160 MB as read
+MAX_MIC_SAMPLES = 20_000_000
+SOUND_SUFFIXES = (".wav", ".flac", ".ogg")
+
+
+def check_mic_file(option: str) -> None:
+    """`--mic FILE`: a regular sound file of bounded size and length, holding samples that are numbers; a
+    SceneError naming --mic otherwise, before the page opens. A name that is no file and has no sound suffix is
+    a device (left to the live stage)."""
+    path = Path(option)
+    if path.suffix.lower() not in SOUND_SUFFIXES and not path.is_file():
+        return
+    problem = _mic_file_problem(path)
+    if problem is not None:
+        raise SceneError([Diagnostic(f"--mic `{option}`: {problem}", None,
+                                     "rehearse with a WAV, FLAC or OGG recording of the breath")])
+
+
+def _mic_file_problem(path: Path) -> str | None:
+    from isaac_ir.files import MAX_ASSET_BYTES, FileRefused, Confinement
+
+    try:
+        Confinement.for_scene(path.parent).regular(path, MAX_ASSET_BYTES["recording"], anywhere=True)
+    except FileRefused as error:
+        return error.message
+    try:
+        import soundfile
+
+        info = soundfile.info(str(path))
+    except ImportError:
+        return None  # the live stage says which package is missing
+    except Exception as error:  # soundfile's own LibsndfileError, RuntimeError, ...
+        return f"cannot read it as sound ({str(error).splitlines()[0][:160] if str(error) else type(error).__name__})"
+    return _sound_problem(path, info, soundfile)
+
+
+def _sound_problem(path: Path, info, soundfile) -> str | None:
+    if info.frames <= 0 or info.channels <= 0:
+        return "it holds no samples"
+    if not info.samplerate >= 1:
+        return f"its sample rate is {info.samplerate} Hz"
+    if info.frames * info.channels > MAX_MIC_SAMPLES:
+        return (f"it holds {info.frames * info.channels} samples, more than the {MAX_MIC_SAMPLES} a rehearsal may "
+                "play (cut it shorter)")
+    import numpy as np
+
+    samples, rate = soundfile.read(str(path), dtype="float64", always_2d=True)
+    bad = np.flatnonzero(~np.all(np.isfinite(samples), axis=1))
+    if len(bad):
+        return f"sample {bad[0]} (at {bad[0] / rate:.3g} s) is not a number (NaN or infinite)"
+    return None
 
 
 def sliders(path: Path, overrides: dict | None = None) -> list:

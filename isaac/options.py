@@ -57,6 +57,14 @@ def step_time(text: str) -> float:
     return value
 
 
+def positive_seconds(text: str) -> float:
+    """--expand-seconds: a time > 0 (a bare number is seconds)."""
+    value = _finite(quantity(text, U.TIME, "a time"), text, "the time")
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"the time must be longer than 0 s, got `{text}`")
+    return value
+
+
 def end_time(text: str) -> float:
     """--until: a finite time, not negative (checked against the scene's start once the scene is read)."""
     value = _finite(quantity(text, U.TIME, "a time"), text, "--until")

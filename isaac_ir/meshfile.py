@@ -19,8 +19,15 @@ import numpy as np
 
 from isaac_ir.files import MAX_ASSET_BYTES, FileRefused, read_bounded
 
-# the most vertices or triangles a mesh may have (a 64 MiB OBJ holds about 2.5 million vertex lines)
+# the most vertices a mesh may have (a 64 MiB OBJ holds about 2.5 million vertex lines); a face index beyond it
+# names no vertex
 MAX_MESH_ITEMS = 2_000_000
+# the most triangles a mesh may have: checking a mesh of 2 million took 24 s and running it 43 s; 200,000 is a
+# finely detailed solid that checks in about 2 s (docs/budgets.md, "Limits on files")
+MAX_MESH_TRIANGLES = 200_000
+# the largest coordinate a mesh may hold, in the file's units: the bound on a scene's lengths (1e12 m); beyond
+# it a double places a point to worse than 1e-4 and the squares and cubes of the volume integrals overflow
+MAX_MESH_COORDINATE = 1e12
 # a mesh is flat when its thinnest extent (the smallest singular value of its centred vertices) is below this
 # fraction of its widest: 1e-9 of a metre-sized rock is a nanometre
 FLAT_RATIO = 1e-9
@@ -57,18 +64,25 @@ def mesh_problem(name: str, folder, confinement) -> tuple | None:
         if not os.path.lexists(real):
             return None
         info = os.stat(real)
-        _checked(str(real), (info.st_mtime_ns, info.st_size, info.st_ino))
     except FileRefused as error:
         return error.message, error.hint
-    except (OSError, MeshFileError) as error:
-        return (getattr(error, "strerror", None) or str(error)), MESH_HINT
-    return None
+    except OSError as error:
+        return (error.strerror or str(error)), MESH_HINT
+    problem = _checked(str(real), (info.st_mtime_ns, info.st_size, info.st_ino))
+    return None if problem is None else (problem, MESH_HINT)
 
 
 @functools.lru_cache(maxsize=64)
-def _checked(path: str, stamp: tuple) -> None:
-    """read_mesh for its errors only, once per version of the file (a loop of 30 teeth reads one)."""
-    read_mesh(path)
+def _checked(path: str, stamp: tuple) -> str | None:
+    """What read_mesh finds wrong with the file, or None; once per version of the file, a refusal as well as an
+    acceptance (thirty bodies of one mesh, or a loop of 30 teeth, read it once)."""
+    try:
+        read_mesh(path)
+    except FileRefused as error:
+        return error.message
+    except (OSError, MeshFileError) as error:
+        return getattr(error, "strerror", None) or str(error)
+    return None
 
 
 def validate(vertices: np.ndarray, faces: np.ndarray) -> None:
@@ -76,12 +90,16 @@ def validate(vertices: np.ndarray, faces: np.ndarray) -> None:
     if len(vertices) == 0 or len(faces) == 0:
         raise MeshFileError(f"it holds {len(vertices)} vertices and {len(faces)} triangles: no solid "
                             "(an OBJ file needs `v x y z` and `f i j k` lines)")
-    if len(vertices) > MAX_MESH_ITEMS or len(faces) > MAX_MESH_ITEMS:
-        raise MeshFileError(f"it holds {len(vertices)} vertices and {len(faces)} triangles, more than the "
-                            f"{MAX_MESH_ITEMS} a mesh may have (simplify it)")
+    _check_counts(len(vertices), len(faces))
     if not np.all(np.isfinite(vertices)):
         row = int(np.flatnonzero(~np.all(np.isfinite(vertices), axis=1))[0])
-        raise MeshFileError(f"vertex {row + 1} is not a finite point: ({', '.join(f'{c:g}' for c in vertices[row])})")
+        raise MeshFileError(f"vertex {row + 1} is not a finite point: ({_point(vertices[row])})")
+    far = np.any(np.abs(vertices) > MAX_MESH_COORDINATE, axis=1)
+    if np.any(far):
+        row = int(np.flatnonzero(far)[0])
+        raise MeshFileError(f"vertex {row + 1} is at ({_point(vertices[row])}): a coordinate beyond "
+                            f"±{MAX_MESH_COORDINATE:g}, the largest a mesh may hold (a scene's lengths are at most "
+                            f"{MAX_MESH_COORDINATE:g} m)")
     if faces.min() < 0 or faces.max() >= len(vertices):
         bad = faces[(faces < 0) | (faces >= len(vertices))][0]
         raise MeshFileError(f"a triangle names vertex {_written(int(bad), len(vertices))}, and the file has "
@@ -93,6 +111,18 @@ def validate(vertices: np.ndarray, faces: np.ndarray) -> None:
         raise MeshFileError("its triangles all sit on one point")
     if len(spread) < 3 or spread[2] <= FLAT_RATIO * spread[0]:
         raise MeshFileError("it is flat: its triangles all lie in one plane (or on one line), so it bounds no solid")
+
+
+def _check_counts(vertices: int, triangles: int) -> None:
+    if vertices > MAX_MESH_ITEMS:
+        raise MeshFileError(f"it holds more than {MAX_MESH_ITEMS} vertices, the most a mesh may have (simplify it)")
+    if triangles > MAX_MESH_TRIANGLES:
+        raise MeshFileError(f"it holds more than {MAX_MESH_TRIANGLES} triangles, the most a mesh may have "
+                            "(simplify it, e.g. with a decimate modifier)")
+
+
+def _point(xyz) -> str:
+    return ", ".join(f"{c:g}" for c in xyz)
 
 
 def _written(index: int, count: int) -> str:
@@ -120,8 +150,8 @@ def read_obj(text: str) -> tuple:
                 faces.extend([ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1))
         except ValueError as error:
             raise MeshFileError(f"not an OBJ file: line {number}: {error}") from None
-        if len(vertices) > MAX_MESH_ITEMS or len(faces) > MAX_MESH_ITEMS:
-            break  # validate() says so; no need to read the rest
+        if len(vertices) > MAX_MESH_ITEMS or len(faces) > MAX_MESH_TRIANGLES:
+            _check_counts(len(vertices), len(faces))  # refused as soon as it is over: the rest is not read
     return np.asarray(vertices, float).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3)
 
 
@@ -138,6 +168,7 @@ def _check_face_indices(ids: list) -> None:
 def read_stl(data: bytes) -> tuple:
     count = int.from_bytes(data[80:84], "little") if len(data) >= 84 else -1
     if len(data) == 84 + 50 * count:  # binary: 80-byte header, count, then 50 bytes per triangle
+        _check_counts(0, count)
         record = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attr", "<u2")])
         corners = np.frombuffer(data, record, count, 84)["corners"].astype(float).reshape(-1, 3)
     elif data[:5].lower() != b"solid" and count >= 0:
@@ -153,6 +184,7 @@ def read_stl(data: bytes) -> tuple:
             raise MeshFileError(f"not an STL file: {error}") from None
         if len(corners) % 3:
             raise MeshFileError("not an STL file: its corners do not make whole triangles")
+        _check_counts(0, len(corners) // 3)
     if not np.all(np.isfinite(corners)):
         raise MeshFileError("a corner is not a finite point")
     vertices, inverse = np.unique(np.round(corners, 12), axis=0, return_inverse=True)

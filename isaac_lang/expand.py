@@ -5,6 +5,7 @@ can resolve names once every body, material and wind is known, whatever the orde
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,6 +29,7 @@ class Limits:
 
     max_items: int = 200_000  # declarations after expansion
     max_depth: int = 32  # nested includes and part instances
+    max_seconds: float = 3.0  # wall-clock time for includes, loops and parts (--expand-seconds)
     include_path: tuple = ()  # folders outside the scene's own that its includes and assets may be read from
 
 
@@ -75,22 +77,28 @@ class Expander:
         self.count = 0  # declarations so far
         self.expansions = 0  # loop iterations and part instances so far (a loop of lets counts too)
         self.halted = False  # a runaway was reported once; the expansion then stops quietly
+        self.deadline = time.monotonic() + limits.max_seconds
+        self.resolved: dict = {}  # path of an include -> its real path, or the FileRefused it raised
+        self.names: dict = {}  # path -> its name in diagnostics
 
     # -- files --------------------------------------------------------------------------------------------
 
     def expand_file(self, path: Path, scope: Scope, depth: int = 0, at: SourcePos | None = None) -> None:
-        name = display_path(path, self.root)
-        try:
-            resolved = real_path(path)
-        except FileRefused as error:  # a NUL byte in the name, a link to itself: nothing to open
-            self.reporter.error(f"cannot read `{name}`: {error.message}", at, error.hint)
+        resolved = self._resolve(path)
+        if isinstance(resolved, FileRefused):  # a NUL byte in the name, a link to itself: nothing to open
+            self.reporter.error(f"cannot read `{display_path(path, self.root)}`: {resolved.message}", at,
+                                resolved.hint)
             return
+        name = self._name(path)
         if resolved in self.include_stack:
-            chain = " -> ".join(display_path(p, self.root) for p in self.include_stack + [resolved])
+            chain = " -> ".join(self._name(p) for p in self.include_stack + [resolved])
+            self.halted = True  # a cycle never ends: the rest of the expansion would only repeat it
             self.reporter.error(f"include cycle: {chain}", at, "remove one of the includes")
             return
         if resolved not in self.trees:
+            started = time.monotonic()
             self.trees[resolved] = self._read_and_parse(path, name, at)
+            self.deadline += time.monotonic() - started  # the budget is for expansion: a long file's parse is not
         tree = self.trees[resolved]
         if tree is None:
             return
@@ -99,6 +107,21 @@ class Expander:
             self.items(tree.children, scope, ExprLowerer(name, self.reporter), depth)
         finally:
             self.include_stack.pop()
+
+    def _resolve(self, path: Path):
+        """The real path of a file to include, or the FileRefused that says why it has none; worked out once
+        per name (an include inside a loop names the same file each time)."""
+        if path not in self.resolved:
+            try:
+                self.resolved[path] = real_path(path)
+            except FileRefused as error:
+                self.resolved[path] = error
+        return self.resolved[path]
+
+    def _name(self, path: Path) -> str:
+        if path not in self.names:
+            self.names[path] = display_path(path, self.root)
+        return self.names[path]
 
     def _read_and_parse(self, path: Path, name: str, at: SourcePos | None):
         """The parse tree of a scene file, or None with the reason reported (at the include that names it, or at
@@ -129,7 +152,10 @@ class Expander:
 
     def items(self, items, scope: Scope, lowerer: ExprLowerer, depth: int, top: bool = True) -> None:
         for item in items:
+            if self.halted:
+                return  # a runaway was reported: what is left would only repeat it
             try:
+                self._check_time(item, lowerer)
                 self.item(item, scope, lowerer, depth, top)
             except SceneError:
                 # recorded already; go on with the next item so one run reports several errors
@@ -187,6 +213,8 @@ class Expander:
             self.out.parameters[name] = value
 
     def _include(self, item, scope, lowerer, depth):
+        if not self._spend(1, 0, item, lowerer):
+            return
         if depth >= self.limits.max_depth:
             self.halted = True
             raise lowerer.fail("includes nested too deeply", item, "is there an include cycle?")
@@ -272,6 +300,16 @@ class Expander:
             raise lowerer.fail(f"this expands the scene beyond the limit of {self.limits.max_items} declarations",
                                item, "raise the limit with --max-items if you mean it")
         return True
+
+    def _check_time(self, item, lowerer) -> None:
+        """Stop, at the item being expanded, once expansion has taken longer than its budget: counted as the
+        work is done, so a loop of includes that fail stops early rather than after its last iteration."""
+        if time.monotonic() > self.deadline:
+            self.halted = True
+            raise lowerer.fail(f"expanding the scene's includes, loops and parts took more than "
+                               f"{self.limits.max_seconds:g} s; stopped here", item,
+                               "a loop of includes or parts asks for more than it seems; raise the limit with "
+                               "--expand-seconds if you mean it")
 
     def _integer(self, tree, scope, lowerer) -> int:
         value = lowerer.lower(tree, scope, FIXED)

@@ -17,7 +17,7 @@ from isaac_ir import ir
 from isaac_lang.assets import check_assets
 from isaac_lang.check import check
 from isaac_ir.diagnostics import Reporter, SceneError, SourceCache, SourcePos, did_you_mean
-from isaac_lang.overrides import set_label
+from isaac_lang.overrides import SET_POSITION, set_label, set_problem
 from isaac_lang.expand import Expander, Limits
 from isaac_lang.lower import SceneLowerer
 from isaac_lang.lower_expr import ExprContext, ExprLowerer, Scope
@@ -122,6 +122,10 @@ def _parse_overrides(overrides: dict, reporter: Reporter, sources: SourceCache) 
     """--set NAME=VALUE: each VALUE is an expression of the language, e.g. `2 m` or `0.5*pi`."""
     parsed = {}
     for name, text in overrides.items():
+        problem = set_problem(str(name), str(text).strip())
+        if problem is not None:
+            reporter.error(problem, SET_POSITION, "parameters are the scene's top-level `let`s: --set NAME=VALUE")
+            continue
         label = set_label(name, str(text).strip())
         sources.add(label, str(text).strip())
         try:

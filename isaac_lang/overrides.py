@@ -2,11 +2,38 @@
 in, and a value of another kind of quantity is refused naming `--set NAME=VALUE`, not the scene's line."""
 from __future__ import annotations
 
+import re
+
 from isaac_ir import expr as E
 from isaac_ir import units as U
 from isaac_ir.diagnostics import Reporter, SourcePos
 from isaac_lang.lower_expr import written_unit
 from isaac_lang.typed import Typed
+
+
+# a parameter's name is a NAME of the grammar; longer than this it is not one a scene would write
+MAX_SET_NAME = 64
+# a value is a short expression (`2 m`, `0.5*pi`); a longer text is a mistake of the shell, not a value
+MAX_SET_VALUE = 10_000
+_PARAMETER_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+SET_POSITION = SourcePos("--set", 1, 1)
+
+
+def clipped(text: str, most: int = 40) -> str:
+    """A text typed on the command line, short enough to quote in a message."""
+    return text if len(text) <= most else text[:most] + f"... ({len(text)} characters)"
+
+
+def set_problem(name: str, text: str) -> str | None:
+    """Why `--set NAME=VALUE` cannot be read at all (a name no parameter can have, a value far too long), or
+    None. Checked before the value is parsed, for every path a --set takes (run, golden settings, sweep, fit)."""
+    if len(name) > MAX_SET_NAME:
+        return f"a parameter's name is at most {MAX_SET_NAME} characters: `{clipped(name)}`"
+    if not _PARAMETER_NAME.fullmatch(name):
+        return f"`{clipped(name)}` is not a parameter's name (letters, digits and `_`, not starting with a digit)"
+    if len(text) > MAX_SET_VALUE:
+        return f"the value of `{name}` is {len(text)} characters long, more than the {MAX_SET_VALUE} a value may have"
+    return None
 
 
 def set_label(name: str, text: str) -> str:

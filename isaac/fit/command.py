@@ -11,7 +11,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from isaac_ir.diagnostics import Diagnostic, SceneError
+from isaac_ir.diagnostics import Diagnostic, SceneError, SourcePos
+from isaac.writable import check_output_folder
 
 EXIT_OK, EXIT_SCENE, EXIT_TOLERANCE = 0, 2, 3
 
@@ -36,6 +37,8 @@ def cmd_fit(args, load, default_out, overrides: dict, limits, verbosity: int) ->
 
     scene = load(args).scene
     _check_fittable(scene, args)
+    out = Path(args.out) if args.out else default_out(args.scene)
+    check_output_folder(out, "--out")  # before the search's runs, not after them
     folder = Path(args.scene).parent
     runs = _runs(args, folder, limits, DaskRuns, LocalRuns)
     say = (lambda line: print(line, flush=True)) if verbosity >= 0 else (lambda line: None)
@@ -46,22 +49,27 @@ def cmd_fit(args, load, default_out, overrides: dict, limits, verbosity: int) ->
         runs.close()
     point = search.to_si(search.best[1]) if search.best[1] is not None else [v.start for v in scene.varies]
     say_values(scene.varies, point, search, verbosity)
-    out = Path(args.out) if args.out else default_out(args.scene)
     return fitted_run(args, scene.varies, point, search, overrides, limits, out, verbosity)
 
 
 def _check_fittable(scene, args) -> None:
     """A fit needs something to vary and something to meet; and one way of spreading its runs."""
+    from isaac.sweep.command import check_scheduler_address, check_workers
+
+    at_scene = SourcePos(Path(args.scene).name, 1, 1)  # a vary and a goal belong in the scene's text
     if not scene.varies:
-        raise SceneError([Diagnostic(f"{args.scene}: nothing to fit: the scene has no `vary`", None,
+        raise SceneError([Diagnostic("nothing to fit: the scene has no `vary`", at_scene,
                                      "free a parameter with `vary NAME in LOW .. HIGH` (docs/goals.md)")])
     if not scene.goals:
-        raise SceneError([Diagnostic(f"{args.scene}: nothing to fit: the scene has no `goal`", None,
+        raise SceneError([Diagnostic("nothing to fit: the scene has no `goal`", at_scene,
                                      "say what must happen, e.g. `goal hit: ball.position at 1 s = (2, 0, 0) m "
                                      "within 1 mm` (docs/goals.md)")])
     if args.workers is not None and args.scheduler:
         raise SceneError([Diagnostic("--workers N is the size of a local cluster: not with --scheduler", None,
                                      "the cluster's own workers run the fit's runs")])
+    check_workers(args.workers)
+    if args.scheduler:
+        check_scheduler_address(args.scheduler)
 
 
 def _runs(args, folder: Path, limits, dask_runs, local_runs):

@@ -14,10 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from isaac_ir.diagnostics import SourceCache, counted
-from isaac.golden.compare import Finding, compare
+from isaac_ir.diagnostics import Diagnostic, SceneError, SourceCache, SourcePos, counted
+from isaac.golden.compare import Finding, GoldenShapeError, compare, golden_section, golden_times
 from isaac.golden.record import make_record
-from isaac.golden.settings import check_sample_count, load_settings, settings_path
+from isaac.golden.settings import MAX_GOLDEN_SAMPLES, check_sample_count, load_settings, settings_path
 from isaac.golden.store import golden_folder, has_golden, read_golden, write_golden
 
 __all__ = ["Outcome", "check_scene", "golden_folder", "has_golden", "Finding"]
@@ -72,31 +72,53 @@ def check_scene(path, update: bool = False, overrides: dict | None = None,
         return Outcome(path, "missing")
     loaded = load_scene(path, settings.overrides, sources=sources)
     check_sample_count(settings, loaded.scene.time.start, loaded.scene.time.end)
-    times = None if update or "trajectory" not in golden else golden["trajectory"]["time"]
+    try:
+        times = None if update or not golden else golden_times(golden, MAX_GOLDEN_SAMPLES)
+    except GoldenShapeError as error:
+        raise _shape_error(path, error) from None
     record = make_record(loaded.scene, path.parent, settings, times)
-    findings = compare(golden, record.sections, settings.tolerance, record.energy_scale) if golden else []
-    outcome = Outcome(path, "pass" if not findings else "mismatch", findings, _notes(golden, record, settings),
-                      _summary(record.sections))
+    try:
+        findings = compare(golden, record.sections, settings.tolerance, record.energy_scale) if golden else []
+        notes = _notes(golden, record, settings)
+    except GoldenShapeError as error:
+        if not update:
+            raise _shape_error(path, error) from None
+        findings, notes = [], []  # the goldens that could not be compared are written anew
+    outcome = Outcome(path, "pass" if not findings else "mismatch", findings, notes, _summary(record.sections))
     if update:
         write_golden(path, record.sections)
         outcome.status, outcome.notes = "written", []
     return outcome
 
 
+def _shape_error(scene: Path, error: GoldenShapeError) -> SceneError:
+    """A golden file of the wrong shape, positioned at the file (whose text is not quoted)."""
+    where = SourcePos(f"{golden_folder(scene).name}/{error.section}.json", 1, 1)
+    return SceneError([Diagnostic(f"the golden file does not hold what `isaac golden --update` writes: "
+                                  f"{error.detail}", where,
+                                  f"record the goldens again with `isaac golden {scene} --update`")])
+
+
 def _notes(golden: dict | None, record, settings) -> list:
     """What differs and is not compared: positions; the options the goldens were made with."""
     if not golden:
         return []
+    with golden_section("positions"):
+        return _notes_of(golden, record, settings)
+
+
+def _notes_of(golden: dict, record, settings) -> list:
     notes = []
-    old, new = golden.get("positions", {}), record.sections["positions"]
+    old, new = dict(golden.get("positions", {})), record.sections["positions"]
     moved = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
     if moved:
         notes.append(f"{len(moved)} source position{'s' if len(moved) > 1 else ''} moved ({', '.join(moved[:3])}"
                      f"{', ...' if len(moved) > 3 else ''}); positions are kept apart and not compared")
-    made_with = (golden.get("meta") or {}).get("run")
-    if made_with is not None and made_with != settings.run_record():
-        notes.append(f"the goldens were made with {_options(made_with)}; this check runs with "
-                     f"{_options(settings.run_record())}")
+    with golden_section("meta"):
+        made_with = dict(golden.get("meta") or {}).get("run")
+        if made_with is not None and made_with != settings.run_record():
+            notes.append(f"the goldens were made with {_options(dict(made_with))}; this check runs with "
+                         f"{_options(settings.run_record())}")
     return notes
 
 

@@ -7,6 +7,7 @@ a body that is not there, counts as infinitely many).
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,15 +31,64 @@ class Finding:
         return f"{self.section}: {self.what}: {self.detail}"
 
 
+class GoldenShapeError(ValueError):
+    """Golden data whose JSON is valid but not of the shape `isaac golden --update` writes (a list where an object
+    belongs, a key missing, a string for a number): which section, and what was found wrong."""
+
+    def __init__(self, section: str, detail: str):
+        super().__init__(f"{section}.json: {detail}")
+        self.section, self.detail = section, detail
+
+
+@contextmanager
+def golden_section(section: str):
+    """Read a section of the golden within this block: what its shape breaks is a GoldenShapeError of it."""
+    try:
+        yield
+    except GoldenShapeError:
+        raise
+    except KeyError as error:
+        raise GoldenShapeError(section, f"it has no {error} where one belongs") from None
+    except (TypeError, AttributeError, IndexError, ValueError, OverflowError, RecursionError) as error:
+        raise GoldenShapeError(section, f"a value is not of the kind written there ({_first_line(error)})") from None
+
+
+def _first_line(error: Exception) -> str:
+    return (str(error).splitlines() or [type(error).__name__])[0][:160]
+
+
+def golden_times(golden: dict, most: int) -> list | None:
+    """The times of the golden trajectory, that the record is sampled at: finite numbers in order, at most
+    `most` of them (a GoldenShapeError otherwise); None when the golden has no trajectory."""
+    if "trajectory" not in golden:
+        return None
+    with golden_section("trajectory"):
+        times = np.asarray(golden["trajectory"]["time"], float)
+    if times.ndim != 1 or len(times) > most or not np.all(np.isfinite(times)) or np.any(np.diff(times) < 0):
+        raise GoldenShapeError("trajectory", f"`time` is not a list of at most {most} finite times in order")
+    return times.tolist()
+
+
 def compare(golden: dict, record: dict, tolerance: dict, energy_scale: float = 1.0) -> list:
-    """Every finding of the record's sections against the golden's (sections missing on one side included)."""
-    findings = compare_ir(golden.get("ir"), record.get("ir"), tolerance["ir"])
-    energy_scale = _energy_scale(golden.get("trajectory"), energy_scale)
+    """Every finding of the record's sections against the golden's (sections missing on one side included); a
+    GoldenShapeError naming the section whose shape is not a golden's."""
+    if not isinstance(golden, dict):
+        raise GoldenShapeError("meta", "the goldens are not sections of a record")
+    with golden_section("ir"):
+        findings = compare_ir(golden.get("ir"), record.get("ir"), tolerance["ir"])
+    with golden_section("trajectory"):
+        energy_scale = _energy_scale(golden.get("trajectory"), energy_scale)
     if "trajectory" in golden or "trajectory" in record:
-        findings += compare_trajectory(golden.get("trajectory"), record.get("trajectory"), tolerance, energy_scale)
-        findings += compare_events(golden.get("events") or {}, record.get("events") or {}, tolerance)
-        findings += compare_report(golden.get("report") or {}, record.get("report") or {}, tolerance, energy_scale)
-        findings += compare_audio(golden.get("audio"), record.get("audio"), tolerance)
+        with golden_section("trajectory"):
+            findings += compare_trajectory(golden.get("trajectory"), record.get("trajectory"), tolerance,
+                                           energy_scale)
+        with golden_section("events"):
+            findings += compare_events(golden.get("events") or {}, record.get("events") or {}, tolerance)
+        with golden_section("report"):
+            findings += compare_report(golden.get("report") or {}, record.get("report") or {}, tolerance,
+                                       energy_scale)
+        with golden_section("audio"):
+            findings += compare_audio(golden.get("audio"), record.get("audio"), tolerance)
     return sorted(findings, key=lambda f: -f.excess)
 
 

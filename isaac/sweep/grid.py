@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from lark.exceptions import UnexpectedInput
 
 from isaac_ir.diagnostics import Diagnostic, Reporter, SceneError
+from isaac_lang.overrides import clipped, set_problem
 
 # a range `A..B` or `A..B/N`: N is a whole number after the last slash (so B itself cannot end in `/integer`)
 # the most variants one sweep may run (docs/budgets.md): at a second each, almost three hours on one core; a
@@ -53,8 +54,11 @@ def parse_axis(item: str) -> Axis:
     name, sep, spec = item.partition("=")
     name = name.strip()
     if not sep or not name or not spec.strip():
-        raise usage(f"--set wants NAME=V1,V2,... or NAME=A..B/N, got `{item}`",
+        raise usage(f"--set wants NAME=V1,V2,... or NAME=A..B/N, got `{clipped(item)}`",
                     "e.g. --set theta0=10deg,45deg,90deg or --set theta0=10deg..120deg/30")
+    problem = set_problem(name, "")  # the values are checked one by one below
+    if problem is not None:
+        raise usage(f"--set: {problem}", "parameters are the scene's top-level `let`s")
     items = split_top_level(spec)
     if len(items) == 1:
         match = _RANGE.match(items[0])

@@ -137,13 +137,26 @@ def signed_distance(table, i: int, points, x, R):
         normal = table.normal[i]
         d, n = local @ normal, np.tile(normal, (len(local), 1))
     elif kind == MESH and table.meshes[table.mesh[i]].convex:
-        planes = table.meshes[table.mesh[i]].planes
-        s = local @ planes[:, :3].T - planes[:, 3]
-        face = np.argmax(s, axis=1)
-        d, n = s[np.arange(len(s)), face], planes[face, :3]
+        d, n = _convex_distance(local, table.meshes[table.mesh[i]].planes)
     else:
         return None
     return d, n @ R[i].T
+
+
+# the most point-plane distances held at once (160 MB): the points of a large mesh are taken a block at a time
+MAX_DISTANCES_AT_ONCE = 20_000_000
+
+
+def _convex_distance(local, planes) -> tuple:
+    """(distance, outward normal) of local points to a convex mesh given by its face planes: the largest of the
+    points' heights over the planes, a block of points at a time."""
+    block = max(1, MAX_DISTANCES_AT_ONCE // max(1, len(planes)))
+    d, n = np.empty(len(local)), np.empty((len(local), 3))
+    for start in range(0, len(local), block):
+        s = local[start:start + block] @ planes[:, :3].T - planes[:, 3]
+        face = np.argmax(s, axis=1)
+        d[start:start + block], n[start:start + block] = s[np.arange(len(s)), face], planes[face, :3]
+    return d, n
 
 
 def _round(v, r):
@@ -247,6 +260,10 @@ class FclPairs:
         if found:
             fcl_points = self._fcl_points(a, b, x, found)
             normal = fcl_points[1][0]
+        else:
+            d = fcl.distance(oa, ob, self.distance_request, fcl.DistanceResult())
+            if d > margin:  # apart: no vertex of one is within the margin of the other (none is looked at)
+                return np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]]), np.array([-d]), np.array([FCL_POINT])
         parts = self._vertices_inside(a, b, x, R, margin, normal)
         if not parts and found:
             parts = [fcl_points]

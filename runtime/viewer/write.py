@@ -20,6 +20,7 @@ import numpy as np
 from ..export import geometry
 from ..outputs import write_atomic
 from .mechanism import gear_teeth, mechanism_data, with_teeth
+from .simplify import triangle_share, within_share
 
 # above this many pose numbers (frames x bodies x 7) the viewer keeps every k-th frame: the page stays small
 MAX_POSE_VALUES = 4_000_000
@@ -62,9 +63,13 @@ def viewer_data(scene, arrays: dict, folder: Path | None = None, note: str = "")
             mesh = geometry.box((0.1, 0.1, 0.1))
         if name in gears:
             mesh = with_teeth(mesh, body.shape, gears[name])
+        mesh, simplified = within_share(mesh, triangle_share(len(names)))
+        if simplified:
+            problems.append(f"`{name}` drawn simplified: {simplified}")
         bodies.append(_body_data(body, mesh, colors[index]))
     if problems:
-        note = "; ".join(([note] if note else []) + [f"drawn as a small box: {p}" for p in problems])
+        note = "; ".join(([note] if note else []) + [p if p.startswith("`") else f"drawn as a small box: {p}"
+                                                     for p in problems])
     cameras = [geometry.camera_of(scene, position, c.name) for c in scene.cameras] or \
         [geometry.framing_camera(position)]
     return {
