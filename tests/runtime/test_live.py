@@ -360,7 +360,8 @@ def test_no_input_device_is_a_clear_error(tmp_path):
 
 def test_a_breath_file_that_is_not_there_is_a_clear_error():
     result = isaac("live", "scenes/mobile.isaac", "--mic", "nosuch.wav", "--until", "1", "--no-browser")
-    assert result.returncode == 2 and "error: --mic: no such sound file: nosuch.wav" in result.stderr
+    assert result.returncode == 2 and "error: --mic `nosuch.wav`: no such file" in result.stderr
+    assert "hint: rehearse with a WAV, FLAC or OGG recording" in result.stderr and "Traceback" not in result.stderr
 
 
 def test_a_breath_file_needs_no_sounddevice(tmp_path):
