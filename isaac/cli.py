@@ -21,12 +21,10 @@ import argparse
 import dataclasses
 import os
 import sys
-import time
 from pathlib import Path
 
 from isaac import installed_version
 from isaac import options as opt
-from isaac_runtime.checks import DEFAULT_MAX_CONSTRAINT_ERROR
 from isaac_ir.diagnostics import SceneError, SourceCache, counted
 
 EXIT_OK, EXIT_BUG, EXIT_SCENE, EXIT_TOLERANCE = 0, 1, 2, 3
@@ -62,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
     run = scene_command("run", "simulate and write trajectory, events, audio and report")
     run_options(run)
     run.add_argument("--max-constraint-error", type=opt.constraint_limit,
-                     default=DEFAULT_MAX_CONSTRAINT_ERROR, metavar="LIMIT",
+                     default=argparse.SUPPRESS, metavar="LIMIT",
                      help="exit 3 when the run keeps a constraint error above this once switched-on constraints "
                           "have settled (m, or rad; e.g. 1cm; default 0.1; `off`: no limit)")
     run.add_argument("--mic", nargs="?", const="", default=None, metavar="DEVICE",
@@ -387,10 +385,13 @@ def cmd_run(args, sources) -> int:
         open_microphone(args.mic or None)
     out = Path(args.out) if args.out else default_out(args.scene)
     verbosity = _verbosity(args)
+    # the limit when given (`off`: None); otherwise RunOptions' own default, the runtime's one definition of it (read
+    # here, not when the parser is built: the command's start does not wait for numpy)
+    limit = {"max_constraint_error": args.max_constraint_error} if hasattr(args, "max_constraint_error") else {}
     options = RunOptions(solver=args.solver, step=args.step, until=args.until,
                          progress=verbosity >= 0 and sys.stderr.isatty(), folder=Path(args.scene).parent,
-                         viewer=args.viewer, plots=args.plots, max_constraint_error=args.max_constraint_error,
-                         strict=args.strict, verbosity=verbosity, scene_warnings=tuple(loaded.warnings))
+                         viewer=args.viewer, plots=args.plots, strict=args.strict, verbosity=verbosity,
+                         scene_warnings=tuple(loaded.warnings), **limit)
     return run_scene(loaded.scene, out, options, scene_path=Path(args.scene))
 
 

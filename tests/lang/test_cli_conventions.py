@@ -262,5 +262,9 @@ def test_the_parser_knows_the_runtimes_default_limit():
     from isaac import cli
     from isaac_runtime import checks
 
-    args = cli.build_parser().parse_args(["run", "scene.isaac"])
-    assert args.max_constraint_error == checks.DEFAULT_MAX_CONSTRAINT_ERROR
+    from isaac_runtime.run import RunOptions
+
+    # not given: the run takes RunOptions' default, the runtime's one definition of the limit
+    assert not hasattr(cli.build_parser().parse_args(["run", "scene.isaac"]), "max_constraint_error")
+    assert RunOptions().max_constraint_error == checks.DEFAULT_MAX_CONSTRAINT_ERROR == 0.1
+    assert cli.build_parser().parse_args(["run", "s.isaac", "--max-constraint-error", "off"]).max_constraint_error is None
