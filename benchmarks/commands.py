@@ -49,7 +49,7 @@ def budget(simulated: float) -> float:
 def time_command(path: Path, out: Path) -> float:
     """Wall time of one `isaac run` of the scene, in a fresh process; inf when it fails."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    command = [sys.executable, "-m", "isaac_lang", "run", str(path), "--out", str(out), "-q"]
+    command = [sys.executable, "-m", "isaac", "run", str(path), "--out", str(out), "-q"]
     started = time.perf_counter()
     done = subprocess.run(command, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - started

@@ -165,3 +165,16 @@ def test_the_layering_contract_is_kept():
                              str(ROOT / "pyproject.toml")], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
     assert "0 broken" in result.stdout
+
+
+def test_every_package_folder_is_installed():
+    """Each folder of the four packages that holds an __init__.py is listed in pyproject's packages (a wheel built
+    from it would miss the others)."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10: the tomli dependency
+        import tomli as tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {name for name, (_, init) in MODULES.items() if init}
+    assert found - listed == set()

@@ -54,7 +54,7 @@ var IsaacDraw = (function () {
   function quatMatrix(w, x, y, z) {
     const n = Math.hypot(w, x, y, z) || 1;
     w /= n; x /= n; y /= n; z /= n;
-    // R = I + 2 w [v]x + 2 [v]x^2 (as isaac_runtime.rotation.quat_to_matrix)
+    // R = I + 2 w [v]x + 2 [v]x^2 (as isaac_runtime.core.rotation.quat_to_matrix)
     return [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
             2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
             2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)];
