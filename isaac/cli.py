@@ -480,9 +480,10 @@ def cmd_bench(args, sources) -> int:
     """The suite lives in the source tree's benchmarks/ (not installed): found beside this package."""
     root = Path(__file__).resolve().parents[1]
     if not (root / "benchmarks" / "suite.py").is_file():
-        print("isaac bench: needs a source checkout (benchmarks/ beside isaac_lang/); "
-              "install with `pip install -e '.[bench]'`", file=sys.stderr)
-        return EXIT_BUG
+        # not a bug in the tool: the command asks for what this install does not have (exit 2, as a missing extra)
+        print("error: isaac bench needs a source checkout (benchmarks/ beside isaac/)\n"
+              "hint: clone the repository and install it with `pip install -e '.[bench]'`", file=sys.stderr)
+        return EXIT_SCENE
     sys.path.insert(0, str(root))
     from benchmarks.suite import run
 
