@@ -129,3 +129,11 @@ def test_the_grammar_reads_numbers_with_units_and_comments():
     assert ("variable.parameter.property.isaac", "radius") in tokens
     assert ("comment.line.isaac", "# the bob") in tokens
     assert ("invalid.illegal.isaac", ";") in tm_scopes("mass 1 kg;")
+
+
+def test_the_grammar_knows_every_keyword_of_the_language():
+    """The TextMate grammar's keyword rule names exactly the parser's keywords (a new statement, `vary` or `goal`,
+    is coloured as one)."""
+    text = json.dumps(GRAMMAR)
+    alternation = re.search(r"\(\?:(constraint\|[a-z|]+)\)", text).group(1)
+    assert set(alternation.split("|")) == set(KEYWORDS)
