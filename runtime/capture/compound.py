@@ -28,6 +28,7 @@ from collections import namedtuple
 
 from ..core.jit import entry, kernel
 from ..core.model import SHAPE_PLANE
+from .broad import find_key
 from .narrow import bounds, pair_contacts
 
 CONTACTS, NEAREST = 0, 1
@@ -108,19 +109,6 @@ def _contacts(parts, poses, i, j, margin, out, work):
 
 
 @kernel
-def _is_known(known, feature):
-    """Whether feature is in the sorted array known (binary search)."""
-    lo, hi = 0, len(known)
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if known[mid] < feature:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo < len(known) and known[lo] == feature
-
-
-@kernel
 def _next_nearest(gaps, count):
     """The untested element pair of least gap (the first of equal ones, as a stable sort takes them), or -1."""
     chosen, least = -1, math.inf
@@ -149,7 +137,7 @@ def _nearest(parts, poses, i, j, known, out, work):
         count = min(_test(parts, poses, fi + k // cj, fj + k % cj, math.inf, out, 0, work), len(out.depth))
         deepest, depth = -1, -math.inf
         for c in range(count):
-            if not _is_known(known, out.feature[c]) and out.depth[c] > depth:
+            if find_key(known, len(known), out.feature[c]) < 0 and out.depth[c] > depth:
                 deepest, depth = c, out.depth[c]
         if deepest >= 0 and -depth < best:
             best, found = -depth, 1
