@@ -90,6 +90,7 @@ class CaptureStage:
         self.joints = D.joint_rows(len(sim.compiled.model.constraints.row_instance))
         self.events = D.events(8192)
         self.pseudo = np.zeros((n + 1, 13))
+        self.held = np.zeros((n + 1, 13))  # (the state at a step's start, while the loop takes it in parts)
         self.materials = D.Materials(*_materials(cp, n))
         self.switched_at = sim.state.t
 
@@ -196,7 +197,7 @@ class CaptureStepper:
             later = frame_at[first:] - done
             part = frames._replace(**{name: getattr(frames, name)[first:] for name in _PER_FRAME})
             taken = self._run(c.model, act, c.scratch, st.contacts, st.sweep, st.joints, st.checks, st.events, st.pseudo,
-                              st.materials, y, table[done * self.grid:], hs, total - done, self.grid, later, part,
+                              st.held, st.materials, y, table[done * self.grid:], hs, total - done, self.grid, later, part,
                               status, self.resting, DEPTH_LIMIT, self.energy_tol)
             st.drain()
             first += int(np.count_nonzero(later <= taken))

@@ -10,7 +10,8 @@ the Python side when a step finds more than they hold (the step is then taken ag
                (m/s); e (C,) the pair's restitution; base (C,) hit before this generation; approach (C,) the fastest
                it approached when struck (m/s; 0: no impact); hit (C,) the normal impulse of its impact (N s); lam (C,3) impulses (N s) of the normal and tangent rows; push (C,) the position pass's
                impulse; before (C,3) the rows' relative velocities before the solve; acc (C,) normal impulse
-               since the last frame; old_key (C,), old_lam (C,3), old_acc (C,) the last step's, sorted by key
+               since the last frame; old_key (C,), old_lam (C,3), old_acc (C,), old_point (C,3) the last step's,
+               sorted by key; old_used (C,) whether this step's contacts took an old one's impulses already
     Sweep      order (c,) the collidable bodies that are not planes, sorted by their boxes' low x; planes (p,);
                box (n+1,6) each body's world box [lo, hi] grown by its reach over the step; excluded (e,) sorted
                pair keys a * n + b (a < b) that never collide now; pairs (P,2), count (1,) the candidate pairs;
@@ -30,7 +31,7 @@ import numpy as np
 FEATURES = 1 << 24
 
 Contacts = namedtuple("Contacts", "count a b point normal depth feature key t1 t2 ra rb mass mu bounce lam push "
-                                  "before acc old_key old_lam old_acc hit e base approach")
+                                  "before acc old_key old_lam old_acc hit e base approach old_point old_used")
 Sweep = namedtuple("Sweep", "order planes box excluded pairs count work")
 Checks = namedtuple("Checks", "worst counts")
 # the joints' rows (joints.py), by global row: lam (M,) impulse of the last step, mass (M,), target (M,) velocity
@@ -49,7 +50,7 @@ def contacts(capacity: int) -> Contacts:
     c = max(int(capacity), 16)
     f, v, i = (lambda: np.zeros(c)), (lambda: np.zeros((c, 3))), (lambda: np.zeros(c, np.int64))
     return Contacts(np.zeros(4, np.int64), i(), i(), v(), v(), f(), i(), i(), v(), v(), v(), v(), v(), f(), f(), v(),
-                    f(), v(), f(), i(), v(), f(), f(), f(), f(), f())
+                    f(), v(), f(), i(), v(), f(), f(), f(), f(), f(), v(), i())
 
 
 def grown(old: Contacts, capacity: int) -> Contacts:
@@ -58,6 +59,7 @@ def grown(old: Contacts, capacity: int) -> Contacts:
     kept = int(old.count[2])
     new.count[2] = kept
     new.old_key[:kept], new.old_lam[:kept], new.old_acc[:kept] = old.old_key[:kept], old.old_lam[:kept], old.old_acc[:kept]
+    new.old_point[:kept] = old.old_point[:kept]
     return new
 
 

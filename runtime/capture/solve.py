@@ -32,7 +32,7 @@ import math
 
 from ..core.jit import kernel
 from ..core.vec import cross3, dot3, rotate, scale3, sub3
-from .broad import find_key
+from .broad import find_key, first_at_least
 from .data import FEATURES
 
 # sweeps of impacts in generations per step, at most (then restitution 0); sweeps over one pair's points
@@ -44,6 +44,9 @@ POSITION_SWEEPS = 6
 # interpenetration left alone (m), and the fraction of the rest removed per step by the position pass
 SLOP = 1e-4
 BETA = 0.3
+# how far a contact's point may be from the last step's point of another feature of its pair for it to take that
+# one's impulses as its warm start (m)
+MATCH = 5e-4
 # energy a step's contact impulses may create before it is counted, relative to the energy scale
 ENERGY_TOL = 1e-6
 
@@ -111,7 +114,7 @@ def _row3(a, c):
 
 
 @kernel
-def prepare(bodies, invI, ct, y, n, h, resting):
+def prepare(bodies, invI, ct, y, n, h):
     """Rows of every contact (module docstring): arms, tangents, masses, velocities before, the normal's target;
     then the last step's impulses of the same features applied (warm start)."""
     count = ct.count[0]
@@ -131,9 +134,22 @@ def prepare(bodies, invI, ct, y, n, h, resting):
         ct.hit[c], ct.approach[c] = 0.0, 0.0
         ct.push[c] = max(gap, 0.0)  # (the gap, until `impacts` sets the targets)
         ct.key[c] = (a * n + b) * FEATURES + ct.feature[c]
-    # the warm start after every contact's velocities before were measured (they are the step's own)
+    # the warm start after every contact's velocities before were measured (they are the step's own): the last
+    # step's contact of the same feature, else the nearest of the same pair within MATCH (a point where two
+    # features meet, as aligned edges of a stack, changes its feature with the slightest turn), each taken once
+    old_count = ct.count[2]
+    for i in range(old_count):
+        ct.old_used[i] = 0
     for c in range(count):
-        old = find_key(ct.old_key, ct.count[2], ct.key[c])
+        old = find_key(ct.old_key, old_count, ct.key[c])
+        ct.bounce[c] = old  # (the match, until `impacts` sets the targets)
+        if old >= 0:
+            ct.old_used[old] = 1
+    for c in range(count):
+        if ct.bounce[c] < 0:
+            ct.bounce[c] = _nearest_old(ct, c, old_count, ct.key[c] - ct.feature[c])
+    for c in range(count):
+        old = int(ct.bounce[c])
         ct.acc[c] = ct.old_acc[old] if old >= 0 else 0.0
         for k in range(3):
             ct.lam[c, k] = ct.old_lam[old, k] if old >= 0 else 0.0
@@ -141,6 +157,26 @@ def prepare(bodies, invI, ct, y, n, h, resting):
         push(bodies, invI, y, 7, a, b, ra, rb, _row3(ct.normal, c), ct.lam[c, 0])
         push(bodies, invI, y, 7, a, b, ra, rb, _row3(ct.t1, c), ct.lam[c, 1])
         push(bodies, invI, y, 7, a, b, ra, rb, _row3(ct.t2, c), ct.lam[c, 2])
+
+
+@kernel
+def _nearest_old(ct, c, old_count, pair_key):
+    """The last step's contact of contact c's pair nearest to its point within MATCH and not taken yet (marked
+    taken), or -1. The old contacts are sorted by key, so the pair's are consecutive from the first key >= its
+    own times FEATURES."""
+    i = first_at_least(ct.old_key, old_count, pair_key)
+    best, nearest = -1, MATCH * MATCH
+    while i < old_count and ct.old_key[i] - pair_key < FEATURES:
+        if ct.old_used[i] == 0:
+            d = 0.0
+            for k in range(3):
+                d += (ct.old_point[i, k] - ct.point[c, k]) ** 2
+            if d < nearest:
+                best, nearest = i, d
+        i += 1
+    if best >= 0:
+        ct.old_used[best] = 1
+    return best
 
 
 @kernel
@@ -153,11 +189,15 @@ def _strike(bodies, invI, ct, y, first, end, h, resting):
     for c in range(first, end):
         u = relative(y, ct.a[c], ct.b[c], _row3(ct.ra, c), _row3(ct.rb, c), _row3(ct.normal, c))
         closes = u * h <= -ct.push[c]
-        approaching = approaching or (u < -resting and closes)
+        # a contact that pressed in the last step (its warm start lam_n > 0) strikes only when this step's impulses
+        # made it approach faster than before them: the residual speeds of a resting stack's solve are not impacts
+        # (bouncing them fed the residual back: a pyramid of 28 boxes rocked at 0.5 rad/s)
+        struck = u < -resting and closes and (ct.lam[c, 0] <= 0.0 or u < ct.before[c, 0] - resting)
+        approaching = approaching or struck
         # its target u+ = -e u- (ct.bounce), or -1: not in this generation
         ct.bounce[c] = -ct.e[c] * u if (u < 0.0 and closes) else -1.0
         ct.base[c] = ct.hit[c]
-        if u < -resting and closes:
+        if struck:
             ct.approach[c] = max(ct.approach[c], -u)
     if not approaching:
         return False

@@ -169,6 +169,13 @@ class Collider:
             s.t = t_end
         else:  # NEAR or LEAVES: something new may touch
             self._look(h, epoch)
+            return
+        # the compiled step reports one change at a time, a contact's first: a pair that came near in the same step
+        # (a ball reaching a wall while a block on the floor stopped) is looked at now, or it would be seen only
+        # a step later, already deep (the ball went 7 cm into the wall, unlocated)
+        self._save_start()
+        if self.broad.anything_near(s.x, self._rotations, self.saved[0]):
+            self._look(h, epoch)
 
     def _rewind(self, h: float) -> None:
         """The live state back to the start of the step of h that just ended (the compiled loop keeps it)."""
