@@ -243,7 +243,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
     if jointed:
         evaluate_rows(m, act, s, y, table, j)
         prepare_joints(m, act, s, s.inv_inertia, jt, y, h)
-    impacts(m.bodies, s.inv_inertia, ct, y, h, resting)
+    impacts(m.bodies, s.inv_inertia, ct, y, h, resting, pseudo[:, 0])  # (column 0: free until the position pass)
     for _ in range(VELOCITY_SWEEPS):
         if jointed:
             sweep_joints(m, act, s, s.inv_inertia, jt, y)

@@ -216,19 +216,28 @@ def _strike(bodies, invI, ct, y, first, end, h, resting):
 
 
 @kernel
-def impacts(bodies, invI, ct, y, h, resting):
+def impacts(bodies, invI, ct, y, h, resting, struck_in):
     """Impacts in generations (module docstring): sweeps over the pairs, each striking (`_strike`) while one of
     its contacts approaches faster than the resting speed, until none does or IMPACT_SWEEPS ran out (what is left
-    is resolved without restitution by the solve). Then each contact's target for the solve."""
+    is resolved without restitution by the solve). Then each contact's target for the solve. After the first
+    sweep only the pairs of a body struck in this sweep or the last are looked at again (struck_in (n+1,): the
+    sweep that last struck each body): a heap strikes somewhere at nearly every step, and every sweep over all of
+    its pairs made 1000 spheres cost 13.8 times 125."""
     count = ct.count[0]
-    for _ in range(IMPACT_SWEEPS):
+    for b in range(len(struck_in)):
+        struck_in[b] = -2.0
+    for generation in range(IMPACT_SWEEPS):
         struck = False
         c = 0
         while c < count:
             end = c
             while end < count and ct.a[end] == ct.a[c] and ct.b[end] == ct.b[c]:
                 end += 1
-            struck = _strike(bodies, invI, ct, y, c, end, h, resting) or struck
+            a, b = ct.a[c], ct.b[c]
+            if generation == 0 or max(struck_in[a], struck_in[b]) >= generation - 1:
+                if _strike(bodies, invI, ct, y, c, end, h, resting):
+                    struck = True
+                    struck_in[a], struck_in[b] = generation, generation
             c = end
         if not struck:
             break
