@@ -22,6 +22,7 @@ import numpy as np
 
 from isaac_ir import expr as E
 
+from ..plan.kinematics import never_moving
 from .excitation import contact_duration
 
 
@@ -156,7 +157,7 @@ class Recorder:
         self.placed_rows = np.array([i for _, i in placed], np.int64)
         self.air = WindField(plan.scene, sim.plan) if self.record.wind else None
         # where the wind is sampled, in the order of the record's wind columns
-        self.wind_probes = WindProbes.of(self.record.wind, self.index, _never_moving(sim.plan)) \
+        self.wind_probes = WindProbes.of(self.record.wind, self.index, never_moving(sim.plan)) \
             if self.record.wind else None
         self.frames = np.asarray(sim.plan.frame_times, float)
         self.next_frame = int(np.searchsorted(self.frames, sim.state.t, side="right"))
@@ -316,15 +317,6 @@ def new_record(plan) -> MotionRecord:
     for column, key in enumerate(winds):
         record.wind[key] = StepColumn(table, "wind", column)
     return record
-
-
-def _never_moving(sim_plan) -> np.ndarray:
-    """(n,) bool: bodies that stay where they start: static, not on a kinematic path, at rest (a static body
-    given a velocity drifts with it)."""
-    still = ~np.asarray(sim_plan.dynamic, bool)
-    if sim_plan.kinematics is not None:
-        still[np.asarray(sim_plan.kinematics.index, int)] = False
-    return still & ~np.any(sim_plan.v0 != 0, axis=1) & ~np.any(sim_plan.w0 != 0, axis=1)
 
 
 def _steps_of(sim_plan) -> int:

@@ -29,6 +29,7 @@ from ..core.build import PAIR_TURN
 from ..core.contact import LIFTS, SLIPS, STOPS
 from ..core.data import COUNTER_TURNED_BACK
 from ..core.rotation import quat_to_matrix, world_inverse_inertia
+from ..plan.kinematics import never_moving
 from .compound import contact_elements
 from .contacts import ContactSet, set_relative
 from .events import EventLog
@@ -73,7 +74,7 @@ class Collider:
         self.saved = [np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3))]
         self.t_saved = self.plan.start
         self.broad = BroadPhase(cplan.table, cplan.collidable, self.plan.dynamic, cplan.excluded, cplan.margin,
-                                still=_never_moving(self.plan))
+                                still=never_moving(self.plan))
         self.fcl, self.compound = None, None
         elements = cplan.table.elements
         if len(cplan.fcl_bodies):
@@ -141,11 +142,13 @@ class Collider:
                 self.lasting.write()
 
     def on_stop(self, code: int, which: int, h: float, epoch) -> None:
-        """The step of h that ended at the state's time asked for a look (core/contact.py's codes). A contact
-        that lifts or slips was wrong for the whole step: the step is taken again without it, or sliding. One that
-        stops stops inside the step: the step is taken again up to the time its slip is 0 (found by the secant:
-        under constant friction the slip falls linearly), sticking from there (in the procedural plan the
-        friction impulse of a substep stopped it: it sticks where it is)."""
+        """The step of h that ended at the state's time asked for a look (core/contact.py's codes). A contact that
+        lifts or slips was wrong for the whole step: the step is taken again without it, or sliding. One that stops
+        stops inside the step: the step is taken again up to the time its slip is 0 (the secant: under constant
+        friction the slip falls linearly), sticking from there (procedural: the friction impulse of a substep
+        stopped it, core/contact.py friction_impulses: it sticks where it is). Then a pair that came near in the same
+        step is looked at now: the compiled step reports one change a step (a ball reaching a wall as a brick
+        stopped was found a step late, 7 cm deep)."""
         s = self.sim.state
         if code == LIFTS or code == SLIPS:
             lam = self.sim.compiled.scratch.lam.copy()
@@ -157,7 +160,6 @@ class Collider:
             self.sim.active_rows()
             self._advance(h, epoch)
         elif code == STOPS and self.plan.solver == "procedural":
-            # its friction impulse took the slip away inside a substep (core/contact.py friction_impulses)
             self.lasting.to_sticking(which, s.x, s.q)
         elif code == STOPS:
             t_end = s.t
@@ -170,9 +172,6 @@ class Collider:
         else:  # NEAR or LEAVES: something new may touch
             self._look(h, epoch)
             return
-        # the compiled step reports one change at a time, a contact's first: a pair that came near in the same step
-        # (a ball reaching a wall while a block on the floor stopped) is looked at now, or it would be seen only
-        # a step later, already deep (the ball went 7 cm into the wall, unlocated)
         self._save_start()
         if self.broad.anything_near(s.x, self._rotations, self.saved[0]):
             self._look(h, epoch)
@@ -593,20 +592,8 @@ NO_PAIRS = np.zeros((0, 2), np.int64)
 NOTHING_NEAR = Scan(None, NO_PAIRS, None, None)
 
 
-def _never_moving(plan) -> np.ndarray:
-    """(n,) bool: static bodies (neither dynamic nor on a kinematic path) that start at rest: their boxes never
-    change. (A static body given a velocity drifts with it: it moves.)"""
-    still = ~np.asarray(plan.dynamic, bool)
-    if plan.kinematics is not None:
-        still[np.asarray(plan.kinematics.index, int)] = False
-    still &= ~np.any(plan.v0 != 0, axis=1) & ~np.any(plan.w0 != 0, axis=1)
-    return still
-
-
 def _earlier(best, pair, bracket):
     """Keep the hit whose linear estimate of the time of impact is earliest."""
     t0, t1, d0, d1 = bracket
     estimate = t0 + (t1 - t0) * d0 / (d0 - d1)
-    if best is None or estimate < best[2]:
-        return pair, bracket, estimate
-    return best
+    return (pair, bracket, estimate) if best is None or estimate < best[2] else best

@@ -64,3 +64,12 @@ def window_switches(paths: KinematicPaths | None) -> list:
 def on_path(paths: KinematicPaths, t: float) -> np.ndarray:
     """(k,) bool: which of the paths' bodies are on their path at time t (windows are [start, end))."""
     return (paths.windows[:, 0] <= t) & (t < paths.windows[:, 1])
+
+
+def never_moving(plan) -> np.ndarray:
+    """(n,) bool: bodies that stay where they start: static, not on a kinematic path, at rest (a static body given
+    a velocity drifts with it). The collision stage keeps their boxes; the audio stage's wind probes skip them."""
+    still = ~np.asarray(plan.dynamic, bool)
+    if plan.kinematics is not None:
+        still[np.asarray(plan.kinematics.index, int)] = False
+    return still & ~np.any(plan.v0 != 0, axis=1) & ~np.any(plan.w0 != 0, axis=1)

@@ -135,12 +135,12 @@ def test_wind_speeds_go_into_the_given_row():
 def test_bodies_that_never_move_keep_their_point():
     """The recorder tells WindProbes which bodies never move (static, at rest): their points are filled once,
     their velocity taken as 0. The same speeds, to the last bit, as reading every body from the state."""
-    from isaac_runtime.audio.record import _never_moving
+    from isaac_runtime.plan.kinematics import never_moving
 
     result = simulate(load_text(BREEZE).scene, RunOptions(until=0.1))
     sim = result.simulation
     index = {name: i for i, name in enumerate(sim.plan.names)}
-    still = _never_moving(sim.plan)
+    still = never_moving(sim.plan)
     assert still[index["pole"]] and not still[index["bob"]]
     fast = WindProbes.of(result.audio.record.wind, index, still)
     every = WindProbes.of(result.audio.record.wind, index)
