@@ -2,7 +2,7 @@
 contact solved at velocity level in each step, inside the compiled loop, for scenes whose contacts change too often for
 the exact path (runtime/collide: each impact located in time, each change of the contact set handed back to Python).
 
-    broad.py    world boxes grown by each body's travel, sorted along x, swept
+    broad.py    world boxes grown by each body's travel, hashed into a grid, neighbours paired
     narrow.py   closed-form contact points of a pair (boxes.py: box-box)
     solve.py    the velocity-level contact problem, projected Gauss-Seidel, warm-started by feature
     loop.py     the step: kick, contacts, solve, drift, checks, events, frames
@@ -83,7 +83,6 @@ class CaptureStage:
         kind = cp.table.kind
         planes = np.array([i for i in cp.collidable if kind[i] == PLANE], np.int64)
         order = np.array([i for i in cp.collidable if kind[i] != PLANE], np.int64)
-        order = order[np.argsort(sim.state.y[order, 0], kind="stable")]
         self.sweep = D.sweep(order, planes, n, cp.always_excluded, 8 * len(order) + 64)
         self.contacts = D.contacts(8 * len(order) + 64)
         self.checks = D.checks()

@@ -1,8 +1,13 @@
 """Broad phase of the capturing step, compiled: each body's world box grown by how far it can move in the step,
-kept sorted along x from step to step (insertion sort: bodies move little between steps, so a step costs about
-one pass), swept for overlapping boxes; planes are tested against every box by the box's lowest corner.
+then a uniform grid hashed into buckets (spatial hashing): a cell as wide as the widest box, each body in the cell
+of its box's low corner, so two boxes that overlap are in the same cell or in neighbouring ones, and each body
+looks at its own cell and the 13 neighbours on one side (every neighbouring pair of cells once). A body whose box
+is more than BIG times the mean box wide would make the cells as large: it is tested against every box instead.
+Planes are tested against every box by the box's lowest corner.
 
-Cost: n for the boxes and the pass, plus the pairs whose x extents overlap (n at a given density).
+Cost: n for the boxes, the hashing and the look-ups, plus the pairs in neighbouring cells (n at a given density).
+A sort along x and a sweep cost n times the bodies in a slab as wide as a box: 1000 spheres piled ten high met
+150 boxes each, and 8 times the bodies cost 20 times the time.
 """
 from __future__ import annotations
 
@@ -76,20 +81,6 @@ def _boxes(shapes, sw, y, R, h, margin):
 
 
 @kernel
-def _sort(sw):
-    """Insertion sort of sw.order by the boxes' low x (nearly sorted from the last step: about n)."""
-    order, box = sw.order, sw.box
-    for idx in range(1, len(order)):
-        body = order[idx]
-        low = box[body, 0]
-        j = idx - 1
-        while j >= 0 and box[order[j], 0] > low:
-            order[j + 1] = order[j]
-            j -= 1
-        order[j + 1] = body
-
-
-@kernel
 def find_key(keys, count, key):
     """Index of key in the sorted keys[:count] (binary search), or -1."""
     lo = first_at_least(keys, count, key)
@@ -142,21 +133,109 @@ def _plane_pairs(shapes, sw, dynamic, n, y, R):
                 _add_pair(sw, dynamic, n, i, p)
 
 
+# a body whose box is wider than this many times the mean box is not in the grid (module docstring)
+BIG = 4.0
+
+
+@kernel
+def _side(box, i):
+    """The widest side of body i's box."""
+    return max(box[i, 3] - box[i, 0], box[i, 4] - box[i, 1], box[i, 5] - box[i, 2])
+
+
+@kernel
+def _grid_cell(sw):
+    """(the grid's cell: the widest side of the boxes that are not big, and the side over which a box is big)."""
+    total = 0.0
+    for idx in range(len(sw.order)):
+        total += _side(sw.box, sw.order[idx])
+    big = BIG * total / max(len(sw.order), 1)
+    cell = 0.0
+    for idx in range(len(sw.order)):
+        side = _side(sw.box, sw.order[idx])
+        if side <= big:
+            cell = max(cell, side)
+    return max(cell, 1e-9), big
+
+
+@kernel
+def _bucket(cx, cy, cz, mask):
+    """The bucket of the cell (cx, cy, cz): its coordinates times three large primes, xor-ed (spatial hashing)."""
+    return ((cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)) & mask
+
+
+@kernel
+def _hash_bodies(sw, cell, big):
+    """sw.cell[i] <- (cx, cy, cz, bucket) of the cell of each body's low corner (bucket -1: a big body), and the
+    bodies sorted by bucket (counting sort): sw.slots[sw.start[k]:sw.start[k + 1]] are bucket k's."""
+    buckets = len(sw.start) - 1
+    mask = buckets - 1
+    for k in range(buckets + 1):
+        sw.start[k] = 0
+    for idx in range(len(sw.order)):
+        i = sw.order[idx]
+        if _side(sw.box, i) > big:
+            sw.cell[i, 3] = -1
+            continue
+        cx, cy, cz = (int(math.floor(sw.box[i, 0] / cell)), int(math.floor(sw.box[i, 1] / cell)),
+                      int(math.floor(sw.box[i, 2] / cell)))
+        k = _bucket(cx, cy, cz, mask)
+        sw.cell[i, 0], sw.cell[i, 1], sw.cell[i, 2], sw.cell[i, 3] = cx, cy, cz, k
+        sw.start[k + 1] += 1
+    for k in range(buckets):
+        sw.start[k + 1] += sw.start[k]
+        sw.fill[k] = sw.start[k]
+    for idx in range(len(sw.order)):
+        i = sw.order[idx]
+        k = sw.cell[i, 3]
+        if k >= 0:
+            sw.slots[sw.fill[k]] = i
+            sw.fill[k] += 1
+
+
+@kernel
+def _overlap(box, i, j):
+    return not (box[j, 0] > box[i, 3] or box[i, 0] > box[j, 3] or box[j, 1] > box[i, 4] or box[i, 1] > box[j, 4]
+                or box[j, 2] > box[i, 5] or box[i, 2] > box[j, 5])
+
+
+@kernel
+def _grid_pairs(sw, dynamic, n, i):
+    """The pairs of body i (in the grid) with the bodies of its own cell after it and of the 13 neighbouring cells
+    on the side (dx, dy, dz) > 0 in that order of axes."""
+    mask = len(sw.start) - 2
+    cx, cy, cz = sw.cell[i, 0], sw.cell[i, 1], sw.cell[i, 2]
+    for dx in range(0, 2):
+        for dy in range(-1 if dx > 0 else 0, 2):
+            for dz in range(-1 if (dx > 0 or dy > 0) else 0, 2):
+                k = _bucket(cx + dx, cy + dy, cz + dz, mask)
+                for slot in range(sw.start[k], sw.start[k + 1]):
+                    j = sw.slots[slot]
+                    # (a bucket holds other cells too; the own cell's pairs once, from the lower index)
+                    if sw.cell[j, 0] != cx + dx or sw.cell[j, 1] != cy + dy or sw.cell[j, 2] != cz + dz:
+                        continue
+                    if dx == 0 and dy == 0 and dz == 0 and j <= i:
+                        continue
+                    if _overlap(sw.box, i, j):
+                        _add_pair(sw, dynamic, n, i, j)
+
+
 @kernel
 def find_pairs(shapes, sw, dynamic, y, R, h, margin):
     """sw.pairs[:sw.count[0]] <- the pairs whose grown boxes overlap (count beyond len(sw.pairs): grow, retake)."""
     n = len(y) - 1
     sw.count[0] = 0
     _boxes(shapes, sw, y, R, h, margin)
-    _sort(sw)
-    order, box = sw.order, sw.box
-    for idx in range(len(order)):
-        i = order[idx]
-        for jdx in range(idx + 1, len(order)):
-            j = order[jdx]
-            if box[j, 0] > box[i, 3]:
-                break
-            if box[j, 1] > box[i, 4] or box[i, 1] > box[j, 4] or box[j, 2] > box[i, 5] or box[i, 2] > box[j, 5]:
-                continue
-            _add_pair(sw, dynamic, n, i, j)
+    cell, big = _grid_cell(sw)
+    _hash_bodies(sw, cell, big)
+    for idx in range(len(sw.order)):
+        i = sw.order[idx]
+        if sw.cell[i, 3] >= 0:
+            _grid_pairs(sw, dynamic, n, i)
+            continue
+        # a big body: against every other box (a pair of big ones once, from the lower index)
+        for jdx in range(len(sw.order)):
+            j = sw.order[jdx]
+            if j != i and (sw.cell[j, 3] >= 0 or j > i) and _overlap(sw.box, i, j):
+                _add_pair(sw, dynamic, n, i, j)
     _plane_pairs(shapes, sw, dynamic, n, y, R)

@@ -33,7 +33,7 @@ from .broad import find_pairs, reach, travel
 from .data import IMPACT, PRESSING
 from .narrow import pair_contacts
 from .joints import close_joints, prepare_joints, sweep_joints
-from .solve import POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, prepare, separate, sweep, work
+from .solve import POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, keep_old, prepare, separate, sweep, work
 
 GROW, DRAIN = 4, 5
 # a step whose bodies in contact turn fast is taken in parts (`_split`): the farthest point of a body that is not
@@ -91,32 +91,6 @@ def _narrow(m, s, ct, sw, mats, y, h):
             ct.a[c], ct.b[c], ct.mu[c], ct.e[c] = a, b, mu, e
         found += k
     return found
-
-
-@kernel
-def _keep_old(ct):
-    """The step's contacts become the last step's, sorted by key (Shell's sort, moving lam and acc along)."""
-    count = ct.count[0]
-    for c in range(count):
-        ct.old_key[c], ct.old_acc[c] = ct.key[c], ct.acc[c]
-        for k in range(3):
-            ct.old_lam[c, k], ct.old_point[c, k] = ct.lam[c, k], ct.point[c, k]
-    ct.count[2] = count
-    gap = count // 2
-    while gap > 0:
-        for i in range(gap, count):
-            key, acc, l0, l1, l2 = ct.old_key[i], ct.old_acc[i], ct.old_lam[i, 0], ct.old_lam[i, 1], ct.old_lam[i, 2]
-            p0, p1, p2 = ct.old_point[i, 0], ct.old_point[i, 1], ct.old_point[i, 2]
-            j = i
-            while j >= gap and ct.old_key[j - gap] > key:
-                ct.old_key[j], ct.old_acc[j] = ct.old_key[j - gap], ct.old_acc[j - gap]
-                for k in range(3):
-                    ct.old_lam[j, k], ct.old_point[j, k] = ct.old_lam[j - gap, k], ct.old_point[j - gap, k]
-                j -= gap
-            ct.old_key[j], ct.old_acc[j] = key, acc
-            ct.old_lam[j, 0], ct.old_lam[j, 1], ct.old_lam[j, 2] = l0, l1, l2
-            ct.old_point[j, 0], ct.old_point[j, 1], ct.old_point[j, 2] = p0, p1, p2
-        gap //= 2
 
 
 @kernel
@@ -243,11 +217,11 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
     if jointed:
         evaluate_rows(m, act, s, y, table, j)
         prepare_joints(m, act, s, s.inv_inertia, jt, y, h)
-    impacts(m.bodies, s.inv_inertia, ct, y, h, resting, pseudo[:, 0])  # (column 0: free until the position pass)
+    impacts(ct, y, h, resting, sw.struck_in)
     for _ in range(VELOCITY_SWEEPS):
         if jointed:
             sweep_joints(m, act, s, s.inv_inertia, jt, y)
-        sweep(m.bodies, s.inv_inertia, ct, y)
+        sweep(ct, y)
     _check(ct, chk, y, t, depth_limit, energy_tol)
     for c in range(found):
         ct.acc[c] += ct.lam[c, 0] + ct.hit[c]
@@ -259,7 +233,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
         for _ in range(POSITION_SWEEPS):
             if jointed:
                 close_joints(m, act, s, s.inv_inertia, jt, pseudo)
-            separate(m.bodies, s.inv_inertia, ct, pseudo, h)
+            separate(ct, pseudo, h)
     _drift(m, s, y, pseudo, moved, h)
     if last:
         place_kinematic(m.kinematic, table, j + grid, y)
@@ -267,7 +241,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
         # the joints exactly on their manifold, as the exact path's semi-implicit Euler has them (SHAKE's impulse:
         # dynamics/projection.py): the sweeps leave gears and cords a few mm off
         project(m, act, s, y, table, j + grid, True, h)
-    _keep_old(ct)
+    keep_old(ct)
     return True
 
 

@@ -17,9 +17,11 @@ the two-body impulse of Newton's restitution, p = -(1 + e) m_n u_n, and what tha
 next contacts of the sweep (a row of balls passes the striker's speed down the row, as Newton's cradle does; one
 simultaneous solve would send the row off together). Each such impulse keeps or loses kinetic energy (e <= 1).
 
-One Gauss-Seidel update of row d: lam' = max(0, lam + m_d (target - u_d)) for the normal, the tangents' pair
-projected onto the disc, and the change applied to both bodies at once, so momentum is kept exactly by every
-update. Interpenetration is removed by a separate pass on pseudo-velocities (split impulses): a contact deeper
+Each row is prepared once per step (`prepare`), as a sequential-impulse solver keeps it: its Jacobian
+(d, r_a x d, r_b x d) and what a unit impulse along it does to each body (d / m, I^-1 (r x d); zero for a body
+impulses do not move; 1/m kept once per contact), so a sweep's update costs a few dot products. One Gauss-Seidel update of row d:
+lam' = max(0, lam + m_d (target - u_d)) for the normal, the tangents' pair projected onto the disc, and the
+change applied to both bodies at once, so momentum is kept exactly by every update. Interpenetration is removed by a separate pass on pseudo-velocities (split impulses): a contact deeper
 than SLOP is pushed apart at BETA (depth - SLOP) / h, which moves positions only and never adds kinetic energy.
 
 Energy: the impulses P change the kinetic energy by dK = (v+ - v-)^T M (v+ + v-) / 2 = sum over rows of
@@ -32,13 +34,13 @@ import math
 
 from ..core.jit import kernel
 from ..core.vec import cross3, dot3, rotate, scale3, sub3
-from .broad import find_key, first_at_least
 from .data import FEATURES
 
 # sweeps of impacts in generations per step, at most (then restitution 0); sweeps over one pair's points
 IMPACT_SWEEPS = 64
 PAIR_SWEEPS = 16
-# velocity sweeps (warm-started) and position sweeps per step
+# velocity sweeps (warm-started) and position sweeps per step. Every step takes them all: stopping once a sweep
+# changed no row's speed by more than 1e-6 m/s left a pyramid of 28 boxes turning at 3e-5 rad/s (16 sweeps: 2e-18)
 VELOCITY_SWEEPS = 16
 POSITION_SWEEPS = 6
 # interpenetration left alone (m), and the fraction of the rest removed per step by the position pass
@@ -67,69 +69,64 @@ def tangents(n):
 
 
 @kernel
-def _velocity(y, b, r):
-    return (y[b, 7] + y[b, 11] * r[2] - y[b, 12] * r[1], y[b, 8] + y[b, 12] * r[0] - y[b, 10] * r[2],
-            y[b, 9] + y[b, 10] * r[1] - y[b, 11] * r[0])
+def _jacobian(bodies, invI, ct, c, row, d, ra, rb):
+    """Row `row` of contact c along the unit d: ct.jac[c, row] = (d, r_a x d, r_b x d), ct.turn[c, row] =
+    (I_a^-1 (r_a x d), I_b^-1 (r_b x d)), and its effective mass ct.mass[c, row]; ct.inv[c] = (1/m_a, 1/m_b).
+    A body that impulses do not move has 1/m and I^-1 zero."""
+    a, b = ct.a[c], ct.b[c]
+    rad, rbd = cross3(ra, d), cross3(rb, d)
+    da = bodies.inv_mass[a] if bodies.dynamic[a] else 0.0
+    db = bodies.inv_mass[b] if bodies.dynamic[b] else 0.0
+    ta = rotate(invI, a, rad) if bodies.dynamic[a] else (0.0, 0.0, 0.0)
+    tb = rotate(invI, b, rbd) if bodies.dynamic[b] else (0.0, 0.0, 0.0)
+    for k in range(3):
+        ct.jac[c, row, k], ct.jac[c, row, 3 + k], ct.jac[c, row, 6 + k] = d[k], rad[k], rbd[k]
+        ct.turn[c, row, k], ct.turn[c, row, 3 + k] = ta[k], tb[k]
+    ct.inv[c, 0], ct.inv[c, 1] = da, db
+    # m_d = 1 / (1/m_a + (r_a x d) . I_a^-1 (r_a x d) + 1/m_b + (r_b x d) . I_b^-1 (r_b x d))
+    w = da + dot3(rad, ta) + db + dot3(rbd, tb)
+    ct.mass[c, row] = 1.0 / w if w > 0.0 else 0.0
 
 
 @kernel
-def relative(y, a, b, ra, rb, d):
-    """u_d = d . (v_a + w_a x r_a - v_b - w_b x r_b)."""
-    return dot3(d, sub3(_velocity(y, a, ra), _velocity(y, b, rb)))
+def speed(ct, c, row, y):
+    """u_d = d . (v_a - v_b) + (r_a x d) . w_a - (r_b x d) . w_b, which is d . (v_a + w_a x r_a - v_b - w_b x r_b),
+    of row `row` of contact c (y: the state, or the position pass's pseudo-velocities)."""
+    a, b = ct.a[c], ct.b[c]
+    u = 0.0
+    for k in range(3):
+        u += (ct.jac[c, row, k] * (y[a, 7 + k] - y[b, 7 + k]) + ct.jac[c, row, 3 + k] * y[a, 10 + k]
+              - ct.jac[c, row, 6 + k] * y[b, 10 + k])
+    return u
 
 
 @kernel
-def _inverse_mass(bodies, invI, b, r, d):
-    """1/m + (r x d) . I^-1 (r x d) of body b (0 for a body that does not move under impulses)."""
-    if not bodies.dynamic[b]:
-        return 0.0
-    rd = cross3(r, d)
-    return bodies.inv_mass[b] + dot3(rd, rotate(invI, b, rd))
-
-
-@kernel
-def row_mass(bodies, invI, a, b, ra, rb, d):
-    w = _inverse_mass(bodies, invI, a, ra, d) + _inverse_mass(bodies, invI, b, rb, d)
-    return 1.0 / w if w > 0.0 else 0.0
-
-
-@kernel
-def push(bodies, invI, y, col, a, b, ra, rb, d, p):
-    """Impulse p d on a at r_a and -p d on b at r_b: y[:, col:col+3] += p d / m, y[:, col+3:col+6] += I^-1 (r x p d)."""
-    for slot in range(2):
-        body = a if slot == 0 else b
-        if not bodies.dynamic[body]:
-            continue
-        sign = p if slot == 0 else -p
-        r = ra if slot == 0 else rb
-        turn = rotate(invI, body, cross3(r, scale3(sign, d)))
-        for k in range(3):
-            y[body, col + k] += sign * bodies.inv_mass[body] * d[k]
-            y[body, col + 3 + k] += turn[k]
-
-
-@kernel
-def _row3(a, c):
-    return (a[c, 0], a[c, 1], a[c, 2])
+def push(ct, c, row, y, p):
+    """Impulse p along row `row` of contact c: +p d on a at r_a, -p d on b at r_b."""
+    a, b = ct.a[c], ct.b[c]
+    pa, pb = p * ct.inv[c, 0], p * ct.inv[c, 1]
+    for k in range(3):
+        y[a, 7 + k] += pa * ct.jac[c, row, k]
+        y[a, 10 + k] += p * ct.turn[c, row, k]
+        y[b, 7 + k] -= pb * ct.jac[c, row, k]
+        y[b, 10 + k] -= p * ct.turn[c, row, 3 + k]
 
 
 @kernel
 def prepare(bodies, invI, ct, y, n, h):
-    """Rows of every contact (module docstring): arms, tangents, masses, velocities before, the normal's target;
-    then the last step's impulses of the same features applied (warm start)."""
+    """Rows of every contact (module docstring): tangents, Jacobians, masses, velocities before, the normal's
+    target; then the last step's impulses of the same features applied (warm start)."""
     count = ct.count[0]
     for c in range(count):
         a, b = ct.a[c], ct.b[c]
         p, nrm = (ct.point[c, 0], ct.point[c, 1], ct.point[c, 2]), (ct.normal[c, 0], ct.normal[c, 1], ct.normal[c, 2])
         ra, rb = sub3(p, (y[a, 0], y[a, 1], y[a, 2])), sub3(p, (y[b, 0], y[b, 1], y[b, 2]))
         t1, t2 = tangents(nrm)
-        for k in range(3):
-            ct.ra[c, k], ct.rb[c, k], ct.t1[c, k], ct.t2[c, k] = ra[k], rb[k], t1[k], t2[k]
-        ct.mass[c, 0] = row_mass(bodies, invI, a, b, ra, rb, nrm)
-        ct.mass[c, 1] = row_mass(bodies, invI, a, b, ra, rb, t1)
-        ct.mass[c, 2] = row_mass(bodies, invI, a, b, ra, rb, t2)
-        un = relative(y, a, b, ra, rb, nrm)
-        ct.before[c, 0], ct.before[c, 1], ct.before[c, 2] = un, relative(y, a, b, ra, rb, t1), relative(y, a, b, ra, rb, t2)
+        _jacobian(bodies, invI, ct, c, 0, nrm, ra, rb)
+        _jacobian(bodies, invI, ct, c, 1, t1, ra, rb)
+        _jacobian(bodies, invI, ct, c, 2, t2, ra, rb)
+        for row in range(3):
+            ct.before[c, row] = speed(ct, c, row, y)
         gap = -ct.depth[c]
         ct.hit[c], ct.approach[c] = 0.0, 0.0
         ct.push[c] = max(gap, 0.0)  # (the gap, until `impacts` sets the targets)
@@ -137,57 +134,107 @@ def prepare(bodies, invI, ct, y, n, h):
     # the warm start after every contact's velocities before were measured (they are the step's own): the last
     # step's contact of the same feature, else the nearest of the same pair within MATCH (a point where two
     # features meet, as aligned edges of a stack, changes its feature with the slightest turn), each taken once
-    old_count = ct.count[2]
-    for i in range(old_count):
+    if ct.count[3] < 0:
+        _index_old(ct)  # (the buffers were grown: the last step's contacts were copied, not indexed)
+    for i in range(ct.count[2]):
         ct.old_used[i] = 0
     for c in range(count):
-        old = find_key(ct.old_key, old_count, ct.key[c])
-        ct.bounce[c] = old  # (the match, until `impacts` sets the targets)
-        if old >= 0:
-            ct.old_used[old] = 1
+        first, end = _old_run(ct, ct.key[c] // FEATURES)
+        ct.match[c] = -1
+        for i in range(first, end):
+            if ct.old_key[i] == ct.key[c]:
+                ct.match[c] = i
+                ct.old_used[i] = 1
+                break
     for c in range(count):
-        if ct.bounce[c] < 0:
-            ct.bounce[c] = _nearest_old(ct, c, old_count, ct.key[c] - ct.feature[c])
+        if ct.match[c] < 0:
+            ct.match[c] = _nearest_old(ct, c)
     for c in range(count):
-        old = int(ct.bounce[c])
+        old = ct.match[c]
         ct.acc[c] = ct.old_acc[old] if old >= 0 else 0.0
-        for k in range(3):
-            ct.lam[c, k] = ct.old_lam[old, k] if old >= 0 else 0.0
-        a, b, ra, rb = ct.a[c], ct.b[c], _row3(ct.ra, c), _row3(ct.rb, c)
-        push(bodies, invI, y, 7, a, b, ra, rb, _row3(ct.normal, c), ct.lam[c, 0])
-        push(bodies, invI, y, 7, a, b, ra, rb, _row3(ct.t1, c), ct.lam[c, 1])
-        push(bodies, invI, y, 7, a, b, ra, rb, _row3(ct.t2, c), ct.lam[c, 2])
+        for row in range(3):
+            ct.lam[c, row] = ct.old_lam[old, row] if old >= 0 else 0.0
+            push(ct, c, row, y, ct.lam[c, row])
 
 
 @kernel
-def _nearest_old(ct, c, old_count, pair_key):
+def _nearest_old(ct, c):
     """The last step's contact of contact c's pair nearest to its point within MATCH and not taken yet (marked
-    taken), or -1. The old contacts are sorted by key, so the pair's are consecutive from the first key >= its
-    own times FEATURES."""
-    i = first_at_least(ct.old_key, old_count, pair_key)
+    taken), or -1."""
+    first, end = _old_run(ct, ct.key[c] // FEATURES)
     best, nearest = -1, MATCH * MATCH
-    while i < old_count and ct.old_key[i] - pair_key < FEATURES:
+    for i in range(first, end):
         if ct.old_used[i] == 0:
             d = 0.0
             for k in range(3):
                 d += (ct.old_point[i, k] - ct.point[c, k]) ** 2
             if d < nearest:
                 best, nearest = i, d
-        i += 1
     if best >= 0:
         ct.old_used[best] = 1
     return best
 
 
 @kernel
-def _strike(bodies, invI, ct, y, first, end, h, resting):
+def keep_old(ct):
+    """The step's contacts become the last step's (warm starting), in their order (each pair's consecutive), and
+    each pair's run of them is indexed by its key."""
+    count = ct.count[0]
+    for c in range(count):
+        ct.old_key[c], ct.old_acc[c] = ct.key[c], ct.acc[c]
+        for k in range(3):
+            ct.old_lam[c, k], ct.old_point[c, k] = ct.lam[c, k], ct.point[c, k]
+    ct.count[2] = count
+    _index_old(ct)
+
+
+@kernel
+def _slot(runs, pair, stamp):
+    """Where pair's entry is, or would go, in the open-addressing table runs (linear probing from its hash;
+    entries of another stamp are free)."""
+    mask = len(runs) - 1
+    # Fibonacci hashing: the pair key times 2^64 / golden ratio (mod 2^64), its high bits
+    i = ((pair * -7046029254386353131) >> 40) & mask
+    while runs[i, 3] == stamp and runs[i, 0] != pair:
+        i = (i + 1) & mask
+    return i
+
+
+@kernel
+def _index_old(ct):
+    """ct.runs <- for each pair of the last step's contacts, where its run of them starts and ends, under a new
+    stamp in ct.count[3] (every entry of the last index is free at once)."""
+    stamp = max(ct.count[3], 0) + 1
+    ct.count[3] = stamp
+    c, count = 0, ct.count[2]
+    while c < count:
+        pair = ct.old_key[c] // FEATURES
+        end = c
+        while end < count and ct.old_key[end] // FEATURES == pair:
+            end += 1
+        i = _slot(ct.runs, pair, stamp)
+        ct.runs[i, 0], ct.runs[i, 1], ct.runs[i, 2], ct.runs[i, 3] = pair, c, end, stamp
+        c = end
+
+
+@kernel
+def _old_run(ct, pair):
+    """(first, end) of the last step's contacts of pair ((0, 0): none)."""
+    i = _slot(ct.runs, pair, ct.count[3])
+    if ct.runs[i, 3] != ct.count[3]:
+        return 0, 0
+    return ct.runs[i, 1], ct.runs[i, 2]
+
+
+@kernel
+def _strike(ct, y, first, end, h, resting):
     """One generation's impact of the pair whose contacts are first..end-1, if one of them approaches faster than
     the resting speed within the step: its points together (a face landing on a face is one impact, not four that
     turn it), targets u+ = -e u- from their velocities now, ct.hit grown, each kept >= its value before
     (PGS on the pair's points). Returns whether it struck."""
     approaching = False
     for c in range(first, end):
-        u = relative(y, ct.a[c], ct.b[c], _row3(ct.ra, c), _row3(ct.rb, c), _row3(ct.normal, c))
+        u = speed(ct, c, 0, y)
         closes = u * h <= -ct.push[c]
         # a contact that pressed in the last step (its warm start lam_n > 0) strikes only when this step's impulses
         # made it approach faster than before them: the residual speeds of a resting stack's solve are not impacts
@@ -205,18 +252,16 @@ def _strike(bodies, invI, ct, y, first, end, h, resting):
         for c in range(first, end):
             if ct.bounce[c] < 0.0:
                 continue
-            a, b = ct.a[c], ct.b[c]
-            ra, rb, nrm = _row3(ct.ra, c), _row3(ct.rb, c), _row3(ct.normal, c)
             # hit' = max(hit before the generation, hit + m_n (target - u)): a point may give back what this
             # generation gave it, never pull
-            hit = max(ct.base[c], ct.hit[c] + ct.mass[c, 0] * (ct.bounce[c] - relative(y, a, b, ra, rb, nrm)))
-            push(bodies, invI, y, 7, a, b, ra, rb, nrm, hit - ct.hit[c])
+            hit = max(ct.base[c], ct.hit[c] + ct.mass[c, 0] * (ct.bounce[c] - speed(ct, c, 0, y)))
+            push(ct, c, 0, y, hit - ct.hit[c])
             ct.hit[c] = hit
     return True
 
 
 @kernel
-def impacts(bodies, invI, ct, y, h, resting, struck_in):
+def impacts(ct, y, h, resting, struck_in):
     """Impacts in generations (module docstring): sweeps over the pairs, each striking (`_strike`) while one of
     its contacts approaches faster than the resting speed, until none does or IMPACT_SWEEPS ran out (what is left
     is resolved without restitution by the solve). Then each contact's target for the solve. After the first
@@ -235,7 +280,7 @@ def impacts(bodies, invI, ct, y, h, resting, struck_in):
                 end += 1
             a, b = ct.a[c], ct.b[c]
             if generation == 0 or max(struck_in[a], struck_in[b]) >= generation - 1:
-                if _strike(bodies, invI, ct, y, c, end, h, resting):
+                if _strike(ct, y, c, end, h, resting):
                     struck = True
                     struck_in[a], struck_in[b] = generation, generation
             c = end
@@ -247,32 +292,29 @@ def impacts(bodies, invI, ct, y, h, resting, struck_in):
 
 
 @kernel
-def _friction(bodies, invI, ct, y, c, a, b, ra, rb):
+def _friction(ct, c, y):
     """The tangent rows of contact c: no slip, within Coulomb's disc of radius mu lam_n."""
-    t1, t2 = _row3(ct.t1, c), _row3(ct.t2, c)
-    l1 = ct.lam[c, 1] - ct.mass[c, 1] * relative(y, a, b, ra, rb, t1)
-    l2 = ct.lam[c, 2] - ct.mass[c, 2] * relative(y, a, b, ra, rb, t2)
+    l1 = ct.lam[c, 1] - ct.mass[c, 1] * speed(ct, c, 1, y)
+    l2 = ct.lam[c, 2] - ct.mass[c, 2] * speed(ct, c, 2, y)
     limit = ct.mu[c] * ct.lam[c, 0]
     size = math.sqrt(l1 * l1 + l2 * l2)
     if size > limit:
         scale = limit / size if size > 0.0 else 0.0
         l1, l2 = l1 * scale, l2 * scale
-    push(bodies, invI, y, 7, a, b, ra, rb, t1, l1 - ct.lam[c, 1])
-    push(bodies, invI, y, 7, a, b, ra, rb, t2, l2 - ct.lam[c, 2])
+    push(ct, c, 1, y, l1 - ct.lam[c, 1])
+    push(ct, c, 2, y, l2 - ct.lam[c, 2])
     ct.lam[c, 1], ct.lam[c, 2] = l1, l2
 
 
 @kernel
-def sweep(bodies, invI, ct, y):
+def sweep(ct, y):
     """One sweep of projected Gauss-Seidel over the contacts: friction, then the normal row."""
     for c in range(ct.count[0]):
-        a, b = ct.a[c], ct.b[c]
-        ra, rb, nrm = _row3(ct.ra, c), _row3(ct.rb, c), _row3(ct.normal, c)
         if ct.mu[c] > 0.0:
-            _friction(bodies, invI, ct, y, c, a, b, ra, rb)
+            _friction(ct, c, y)
         # lam_n' = max(0, lam_n + m_n (target - u_n))
-        lam = max(0.0, ct.lam[c, 0] + ct.mass[c, 0] * (ct.bounce[c] - relative(y, a, b, ra, rb, nrm)))
-        push(bodies, invI, y, 7, a, b, ra, rb, nrm, lam - ct.lam[c, 0])
+        lam = max(0.0, ct.lam[c, 0] + ct.mass[c, 0] * (ct.bounce[c] - speed(ct, c, 0, y)))
+        push(ct, c, 0, y, lam - ct.lam[c, 0])
         ct.lam[c, 0] = lam
 
 
@@ -296,18 +338,16 @@ def clear(pseudo, ct):
 
 
 @kernel
-def separate(bodies, invI, ct, pseudo, h):
+def separate(ct, pseudo, h):
     """One sweep of the position pass over the contacts: pseudo-velocities (pseudo (n+1,13), columns 7..12 as v, w
     in y) that push every contact deeper than SLOP apart at BETA (depth - SLOP) / h (split impulses: they move
     positions only)."""
     for c in range(ct.count[0]):
         if ct.depth[c] <= SLOP:
             continue
-        a, b = ct.a[c], ct.b[c]
-        ra, rb, nrm = _row3(ct.ra, c), _row3(ct.rb, c), _row3(ct.normal, c)
         target = BETA * (ct.depth[c] - SLOP) / h
-        lam = max(0.0, ct.push[c] + ct.mass[c, 0] * (target - relative(pseudo, a, b, ra, rb, nrm)))
-        push(bodies, invI, pseudo, 7, a, b, ra, rb, nrm, lam - ct.push[c])
+        lam = max(0.0, ct.push[c] + ct.mass[c, 0] * (target - speed(ct, c, 0, pseudo)))
+        push(ct, c, 0, pseudo, lam - ct.push[c])
         ct.push[c] = lam
 
 
@@ -317,11 +357,9 @@ def work(ct, y):
     created the most)."""
     total, most, which = 0.0, 0.0, -1
     for c in range(ct.count[0]):
-        a, b = ct.a[c], ct.b[c]
-        ra, rb = _row3(ct.ra, c), _row3(ct.rb, c)
-        mine = 0.5 * (ct.hit[c] + ct.lam[c, 0]) * (ct.before[c, 0] + relative(y, a, b, ra, rb, _row3(ct.normal, c)))
-        mine += 0.5 * ct.lam[c, 1] * (ct.before[c, 1] + relative(y, a, b, ra, rb, _row3(ct.t1, c)))
-        mine += 0.5 * ct.lam[c, 2] * (ct.before[c, 2] + relative(y, a, b, ra, rb, _row3(ct.t2, c)))
+        mine = 0.5 * (ct.hit[c] + ct.lam[c, 0]) * (ct.before[c, 0] + speed(ct, c, 0, y))
+        mine += 0.5 * ct.lam[c, 1] * (ct.before[c, 1] + speed(ct, c, 1, y))
+        mine += 0.5 * ct.lam[c, 2] * (ct.before[c, 2] + speed(ct, c, 2, y))
         total += mine
         if mine > most:
             most, which = mine, c
