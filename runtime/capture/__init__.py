@@ -4,6 +4,7 @@ the exact path (runtime/collide: each impact located in time, each change of the
 
     broad.py    world boxes grown by each body's travel, sorted along x, swept
     narrow.py   closed-form contact points of a pair (boxes.py: box-box)
+    compound.py a pair with a compound body: every pair of parts whose boxes meet, with narrow.py's tests
     solve.py    the velocity-level contact problem, projected Gauss-Seidel, warm-started by feature
     loop.py     the step: kick, contacts, solve, drift, checks, events, frames
     data.py     the run's contacts, pairs, checks and events
@@ -28,22 +29,35 @@ DEPTH_LIMIT = 1e-3
 
 
 def eligible(plan) -> str | None:
-    """Why the scene cannot take the capturing path, or None when it can: every collidable shape has a compiled
-    closed form (no compound bodies, no meshes)."""
-    from .kinds import closed_form
+    """Why the scene cannot take the capturing path, or None when it can: every collidable shape, and every part of
+    a compound body, has a compiled closed form against every shape or part it may meet (no meshes), and no pair of
+    bodies has more pairs of parts than a contact's key can name (kinds.LOCAL_FEATURES)."""
+    from .kinds import LOCAL_FEATURES, closed_form
 
     cp = plan.collisions
     if cp is None:
         return "no collisions"
-    if cp.table.elements is not None:
-        return "compound bodies"
-    kinds = {int(cp.table.kind[i]) for i in cp.collidable}
-    moving = {int(cp.table.kind[i]) for i in cp.collidable if plan.dynamic[i]}
+    elements = cp.table.elements
+    if elements is not None:
+        # the two bodies of most parts (a body that is its own shape has one element)
+        largest = np.sort(np.maximum(elements.count[cp.collidable], 1))[-2:]
+        if int(np.prod(largest)) * LOCAL_FEATURES > D.FEATURES:
+            return "compound bodies with more pairs of parts than a contact key holds"
+    kinds = set().union(*(_kinds(cp, i) for i in cp.collidable))
+    moving = set().union(*(_kinds(cp, i) for i in cp.collidable if plan.dynamic[i]))
     for ka in sorted(moving):
         for kb in sorted(kinds):
             if not closed_form(ka, kb):
                 return "a pair without a compiled closed form"
     return None
+
+
+def _kinds(cp, i) -> set:
+    """The shape kinds of body i: its parts' for a compound body, else its own."""
+    elements = cp.table.elements
+    if elements is not None and elements.count[i] > 0:
+        return {int(k) for k in elements.table.kind[elements.of(i)]}
+    return {int(cp.table.kind[i])}
 
 
 def jointed(plan) -> bool:
@@ -92,6 +106,7 @@ class CaptureStage:
         self.pseudo = np.zeros((n + 1, 13))
         self.held = np.zeros((n + 1, 13))  # (the state at a step's start, while the loop takes it in parts)
         self.materials = D.Materials(*_materials(cp, n))
+        self.parts, self.poses = _compounds(cp, n)
         self.switched_at = sim.state.t
 
     def start(self) -> None:
@@ -154,11 +169,34 @@ class CaptureStage:
 
 
 def _materials(cp, n):
+    """friction, restitution, has of the bodies (0..n-1), the world (n), then the parts of the compound bodies
+    (element e at e + 1: compound.material_of); the defaults of a pair without materials."""
     from ..collide import DEFAULT_FRICTION, DEFAULT_RESTITUTION
 
-    friction, restitution, has = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1, np.bool_)
-    friction[:n], restitution[:n], has[:n] = cp.friction[:n], cp.restitution[:n], cp.has_material[:n]
+    size = len(cp.friction) + 1
+    friction, restitution, has = np.zeros(size), np.zeros(size), np.zeros(size, np.bool_)
+    for mine, theirs in ((friction, cp.friction), (restitution, cp.restitution), (has, cp.has_material)):
+        mine[:n], mine[n + 1:] = theirs[:n], theirs[n:]
     return friction, restitution, has, np.array([DEFAULT_FRICTION, DEFAULT_RESTITUTION])
+
+
+def _compounds(cp, n):
+    """(Parts, Poses) of capture/compound.py: the compound bodies' parts (collide/compound_compiled.py), or, in a
+    scene without any, arrays of the same types in which every body is its own shape."""
+    from .compound import Parts, Poses
+
+    if cp.table.elements is not None:
+        from ..collide.compound_compiled import compound_arrays
+
+        return compound_arrays(cp.table.elements)
+    from ..core.model import Shapes
+
+    f, i = (lambda *shape: np.zeros(shape)), (lambda *shape: np.zeros(shape, np.int64))
+    shapes = Shapes(i(n), f(n), f(n, 3), f(n), f(n, 3), f(n, 3))
+    turn = np.ascontiguousarray(np.tile(np.eye(3), (n, 1, 1)))
+    parts = Parts(shapes, np.arange(n, dtype=np.int64), np.full(n, -1, np.int64), f(n, 3), turn, i(n), i(n),
+                  i(7, 7), f(n))
+    return parts, Poses(f(n, 3), f(n, 3, 3), f(n, 6), f(1))
 
 
 class CaptureStepper:
@@ -198,7 +236,7 @@ class CaptureStepper:
             part = frames._replace(**{name: getattr(frames, name)[first:] for name in _PER_FRAME})
             taken = self._run(c.model, act, c.scratch, st.contacts, st.sweep, st.joints, st.checks, st.events, st.pseudo,
                               st.held, st.materials, y, table[done * self.grid:], hs, total - done, self.grid, later, part,
-                              status, self.resting, DEPTH_LIMIT, self.energy_tol)
+                              status, self.resting, DEPTH_LIMIT, self.energy_tol, st.parts, st.poses)
             st.drain()
             first += int(np.count_nonzero(later <= taken))
             done += taken

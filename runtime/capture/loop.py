@@ -3,8 +3,9 @@ forces, so contacts that appear, part, stick or slide never leave the loop (docs
 Moreau-Jean):
 
     1. forces at the step's start; v- = v + h F / m, w- = w + h I^-1 tau       (kick)
-    2. broad phase (broad.py), narrow phase of every candidate pair (narrow.py), with the gap each pair can close
-       in the step (speculative contacts: nothing tunnels while it moves less than the margin it was given)
+    2. broad phase (broad.py), narrow phase of every candidate pair (narrow.py; a pair with a compound body: each
+       pair of parts, compound.py), with the gap each pair can close in the step (speculative contacts: nothing
+       tunnels while it moves less than the margin it was given)
     3. the contact solve (solve.py): impacts in generations, then impulses so that v+ meets the contacts (friction
        included) and the joints' rows (joints.py), one Gauss-Seidel sweep over both after another, warm-started
     4. x += h v+; the free rotation of w+ over h (energy-keeping, procedural/substep.py); the position pass's
@@ -29,7 +30,8 @@ from ..core.rows import evaluate_rows
 from ..core.timetable import TIME
 from ..core.projection import project
 from ..core.model import SHAPE_SPHERE
-from .broad import find_pairs, reach, travel
+from .broad import body_reach, find_pairs, travel
+from .compound import Found, compound_contacts, fold, material_of, place
 from .data import IMPACT, PRESSING
 from .narrow import pair_contacts
 from .joints import close_joints, prepare_joints, sweep_joints
@@ -77,13 +79,31 @@ def _mix(mats, a, b):
 
 
 @kernel
-def _narrow(m, s, ct, sw, mats, y, h):
+def _compound(ct, sw, mats, y, R, a, b, margin, first, parts, poses):
+    """The contacts of a pair with a compound body at slots first.. (compound.py, every pair of parts): turned to
+    the pair's order (a, b) with features unique in it (compound.fold), each with its parts' materials. Returns
+    their count."""
+    out = Found(ct.point[first:], ct.normal[first:], ct.depth[first:], ct.feature[first:], ct.a[first:],
+                ct.b[first:])
+    k = compound_contacts(parts, poses, y, R, a, b, margin, out, sw.work)
+    for c in range(min(k, len(out.depth))):
+        part_a, part_b = fold(parts, out, c, a, b)
+        mu, e = _mix(mats, material_of(parts, a, part_a), material_of(parts, b, part_b))
+        ct.mu[first + c], ct.e[first + c] = mu, e
+    return k
+
+
+@kernel
+def _narrow(m, s, ct, sw, mats, y, h, parts, poses):
     """Contacts of every candidate pair; returns how many were found (beyond the capacity: grow)."""
     found = 0
     capacity = len(ct.a)
     for p in range(sw.count[0]):
         a, b = sw.pairs[p, 0], sw.pairs[p, 1]
-        margin = m.margin + travel(m.shapes, a, y, h) + travel(m.shapes, b, y, h)
+        margin = m.margin + travel(m.shapes, a, y, h, parts) + travel(m.shapes, b, y, h, parts)
+        if parts.count[a] > 0 or parts.count[b] > 0:
+            found += _compound(ct, sw, mats, y, s.R, a, b, margin, found, parts, poses)
+            continue
         k = pair_contacts(m.shapes, a, b, y, s.R, margin, ct.point, ct.normal, ct.depth, ct.feature, found, capacity,
                            sw.work)
         mu, e = _mix(mats, a, b)
@@ -201,7 +221,7 @@ def _drift(m, s, y, pseudo, moved, h):
 
 
 @kernel
-def _split(m, ct, y, h):
+def _split(m, ct, y, h, parts):
     """In how many steps to take the step of h: its bodies in contact last step that are not round turn their
     farthest point by at most TURN_PER_STEP in each (at most MAX_SPLIT steps). A box spinning onto another touches
     edge on edge, one pair of edges a step, and a turn of 2.5 mm a step brought the next pair 3.5 mm deep."""
@@ -212,26 +232,27 @@ def _split(m, ct, y, h):
             if m.shapes.kind[b] == SHAPE_SPHERE or not m.bodies.dynamic[b]:
                 continue
             w = math.sqrt(y[b, 10] ** 2 + y[b, 11] ** 2 + y[b, 12] ** 2)
-            most = max(most, w * reach(m.shapes, b) * h)
+            most = max(most, w * body_reach(m.shapes, parts, b) * h)
     return min(MAX_SPLIT, max(1, int(math.ceil(most / TURN_PER_STEP))))
 
 
 @kernel
 def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit, energy_tol,
-                 since, last):
+                 since, last, parts, poses):
     """One step of h from grid row j, `since` s after its time (a part of a step taken in parts; the kinematic
     bodies placed at row j + grid after the `last` part) (module docstring). Returns False when the buffers were too
-    small (y is then as it was at the step's start)."""
+    small (y is then as it was at the step's start). parts, poses: the compound bodies (compound.py)."""
     t = table[j, TIME] + since
     copy_state(y, s.start)
     step_forces(m, s, y, table, j, h)  # (R current)
     world_inverse_inertia(m.bodies, s.R, s.inv_inertia)
     _kick(m.bodies, s, y, h)
-    find_pairs(m.shapes, sw, m.bodies.dynamic, y, s.R, h, m.margin)
+    place(parts, poses, y, s.R, sw.order)
+    find_pairs(m.shapes, sw, m.bodies.dynamic, y, s.R, h, m.margin, parts, poses)
     if sw.count[0] > len(sw.pairs):
         copy_state(s.start, y)
         return False
-    found = _narrow(m, s, ct, sw, mats, y, h)
+    found = _narrow(m, s, ct, sw, mats, y, h, parts, poses)
     ct.count[1] = found
     if found > len(ct.a):
         copy_state(s.start, y)
@@ -282,9 +303,10 @@ def _record(m, act, s, y, table, j, frames, f):
 
 @entry
 def run(m, act, s, ct, sw, jt, chk, ev, pseudo, held, mats, y, table, h, steps, grid, frame_step, frames, status,
-        resting, depth_limit, energy_tol):
+        resting, depth_limit, energy_tol, parts, poses):
     """Advance y by `steps` steps of h (module docstring); frames recorded at frame_step (steps counted from the
-    call's start, 0: before the first). Returns the steps taken; status (4,) <- (code, step, body, 0)."""
+    call's start, 0: before the first). Returns the steps taken; status (4,) <- (code, step, body, 0). parts (read
+    only) and poses (scratch): the compound bodies (compound.py; a scene without any: every count 0)."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
@@ -292,12 +314,12 @@ def run(m, act, s, ct, sw, jt, chk, ev, pseudo, held, mats, y, table, h, steps, 
         f += 1
     for step in range(steps):
         j = grid * step
-        parts = _split(m, ct, y, h)
+        pieces = _split(m, ct, y, h, parts)
         copy_state(y, held)
         grown = True
-        for part in range(parts):
-            grown = capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h / parts, resting,
-                                 depth_limit, energy_tol, part * h / parts, part == parts - 1)
+        for piece in range(pieces):
+            grown = capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h / pieces, resting,
+                                 depth_limit, energy_tol, piece * h / pieces, piece == pieces - 1, parts, poses)
             if not grown:
                 break
         if not grown:
