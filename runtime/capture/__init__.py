@@ -149,10 +149,23 @@ class CaptureStage:
             a, b = int(row[2]), int(row[3])
             kind = "impact" if row[1] == D.IMPACT else "contact"
             self.log.events.append(self.log._event(row[0], a, b, row[4:7], row[7:10], row[10], row[11], row[12],
-                                                   kind))
+                                                   kind, self._parts(a, b, int(row[13]))))
         if count > len(ev.rows):
             self.events = D.events(2 * count)
         ev.count[0] = 0
+
+    def _parts(self, a: int, b: int, feature: int) -> list:
+        """[part of a, part of b] (names, None for a body of one shape) that a contact's feature names: a compound
+        pair's is folded as local + LOCAL_FEATURES (part_a max(count_b, 1) + part_b) (compound.fold)."""
+        from .kinds import LOCAL_FEATURES
+
+        elements = self.cp.table.elements
+        if elements is None or not (elements.count[a] or elements.count[b]):
+            return [None, None]
+        pair, count_b = feature // LOCAL_FEATURES, max(int(elements.count[b]), 1)
+        part_a = pair // count_b if elements.count[a] else -1
+        part_b = pair % count_b if elements.count[b] else -1
+        return [elements.part_name(a, part_a), elements.part_name(b, part_b)]
 
     def report(self) -> dict:
         """What the run's report says of this path (report.json `contact`)."""
@@ -166,6 +179,17 @@ class CaptureStage:
                 "energy_created": float(w[4]), "energy_created_time": float(w[5]),
                 "energy_created_pair": [names[int(w[6])], names[int(w[7])]] if w[4] > 0 else [],
                 "steps_creating_energy": int(c[1])}
+
+
+def can_bounce(cp) -> bool:
+    """Whether a pair that may touch can have a restitution above 0: a collidable body or part with one, or without
+    a material (it may take the default's)."""
+    from ..collide import DEFAULT_RESTITUTION
+
+    elements = cp.table.elements
+    rows = np.concatenate([elements.of(i) if elements is not None else [i] for i in cp.collidable]).astype(np.int64)
+    restitution = np.where(cp.has_material[rows], cp.restitution[rows], DEFAULT_RESTITUTION)
+    return bool(np.any(restitution > 0.0))
 
 
 def _materials(cp, n):
@@ -213,7 +237,10 @@ class CaptureStepper:
 
         self.compiled, self.stage = compiled, stage
         g = float(np.linalg.norm(plan.gravity)) if getattr(plan, "gravity", None) is not None else 9.81
-        self.resting = max(RESTING_SPEED, RESTING_STEPS * g * plan.step, BOUNCE_SPEED)
+        # BOUNCE_SPEED keeps the solve's residual speeds from bouncing (loop.py); where no pair can bounce (every
+        # restitution 0: the clock), the exact path's resting speed says what is an impact (a tick lands at 4 cm/s)
+        bounce = BOUNCE_SPEED if can_bounce(plan.collisions) else 0.0
+        self.resting = max(RESTING_SPEED, RESTING_STEPS * g * plan.step, bounce)
         self.energy_tol = 1e-6 * max(energy_scale(plan), 1e-12)
         # the procedural plan's substeps are the capturing loop's steps (a position-level plan steps coarsely)
         self.substeps = int(plan.scene.solver.substeps) if plan.solver == "procedural" else 1

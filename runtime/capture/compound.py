@@ -15,7 +15,8 @@ pair's element pairs (G,). x (n,3), R (n,3,3): the bodies' poses (or the state (
 The capturing loop keeps in box[b] of a compound body b (an element that is never tested: its kind is NONE) the
 union of its parts' boxes (`place`).
 
-The capturing loop (loop.py) calls `compound_contacts`, the CONTACTS mode as a kernel, and turns what it finds to
+The capturing loop (loop.py) poses the compound bodies once a step (`place`, for its broad phase too) and calls
+the CONTACTS mode as kernels (`pose` of a body that is its own shape, `posed_contacts`), then turns what it finds to
 its own conventions (`fold`): one order (a, b) for the whole pair, and features that fit its keys (data.py
 FEATURES per pair: the local feature, below kinds.LOCAL_FEATURES, plus that many times the element pair's number).
 
@@ -52,7 +53,7 @@ Found = namedtuple("Found", "point normal depth feature a b")
 
 
 @kernel
-def _pose(parts, poses, x, R, body):
+def pose(parts, poses, x, R, body):
     """The world poses of a body's elements, X = x + R offset, RX = R turn, and their boxes."""
     first, count = _elements(parts, body)
     for e in range(first, first + count):
@@ -103,15 +104,48 @@ def _test(parts, poses, a, b, margin, out, first, work):
 
 
 @kernel
-def _contacts(parts, poses, i, j, margin, out, work):
-    """Mode CONTACTS (module docstring): the element pairs whose grown boxes overlap, i's elements first."""
+def _apart(box, lo, hi, room):
+    """Whether box (6,) lies farther than room from the box (lo, hi) along some world axis."""
+    for k in range(3):
+        if box[k] - hi[k] > room or lo[k] - box[3 + k] > room:
+            return True
+    return False
+
+
+@kernel
+def _union(parts, poses, body, lo, hi, room):
+    """The union (lo, hi) of the boxes of body's elements within room of the box (lo, hi) ((inf, -inf): none)."""
+    inf = math.inf
+    ulo, uhi = (inf, inf, inf), (-inf, -inf, -inf)
+    first, count = _elements(parts, body)
+    for e in range(first, first + count):
+        box = poses.box[e]
+        if _apart(box, lo, hi, room):
+            continue
+        ulo = (min(ulo[0], box[0]), min(ulo[1], box[1]), min(ulo[2], box[2]))
+        uhi = (max(uhi[0], box[3]), max(uhi[1], box[4]), max(uhi[2], box[5]))
+    return ulo, uhi
+
+
+@kernel
+def posed_contacts(parts, poses, i, j, margin, out, work):
+    """Mode CONTACTS (module docstring) of bodies whose elements are posed (`pose`): the element pairs whose grown
+    boxes overlap, i's elements first. An element of i is looked at only if its box comes within the margins of
+    the union of j's elements that come within them of i's box (no pair is lost: both boxes of a pair that meets
+    lie in those unions): the clock's wheel of 95 parts against the pendulum's 9 tests some 40 pairs, not 855."""
     fi, ci = _elements(parts, i)
     fj, cj = _elements(parts, j)
     grow = margin if math.isfinite(margin) else 0.0
+    # (margin inf: every element pair, each test then gives its closest feature)
+    room = 2.0 * grow if math.isfinite(margin) else math.inf
+    inf = math.inf
+    lo_i, hi_i = _union(parts, poses, i, (-inf, -inf, -inf), (inf, inf, inf), room)
+    lo_j, hi_j = _union(parts, poses, j, lo_i, hi_i, room)
     found = 0
     for a in range(fi, fi + ci):
+        if _apart(poses.box[a], lo_j, hi_j, room):
+            continue
         for b in range(fj, fj + cj):
-            # (margin inf: every element pair, each test then gives its closest feature)
             if not math.isfinite(margin) or _gap(parts, poses, a, b, grow) <= 0.0:
                 found += _test(parts, poses, a, b, margin, out, found, work)
     return found
@@ -156,23 +190,14 @@ def _nearest(parts, poses, i, j, known, out, work):
     return found, best
 
 
-@kernel
-def compound_contacts(parts, poses, x, R, i, j, margin, out, work):
-    """Mode CONTACTS as a kernel, for compiled callers (the capturing loop): bodies i and j posed, their contacts
-    into out; returns their count."""
-    _pose(parts, poses, x, R, i)
-    _pose(parts, poses, x, R, j)
-    return _contacts(parts, poses, i, j, margin, out, work)
-
-
 @entry
 def compound_pair(parts, poses, x, R, i, j, margin, mode, known, out, work):
     """The contacts (mode CONTACTS) or the nearest feature (NEAREST) of bodies i and j (module docstring)."""
+    pose(parts, poses, x, R, i)
+    pose(parts, poses, x, R, j)
     if mode == NEAREST:
-        _pose(parts, poses, x, R, i)
-        _pose(parts, poses, x, R, j)
         return _nearest(parts, poses, i, j, known, out, work)
-    return compound_contacts(parts, poses, x, R, i, j, margin, out, work), 0.0
+    return posed_contacts(parts, poses, i, j, margin, out, work), 0.0
 
 
 # ---- the capturing loop's side ---------------------------------------------------------------------------------
@@ -184,7 +209,7 @@ def place(parts, poses, x, R, bodies):
         b = bodies[idx]
         if parts.count[b] == 0:
             continue
-        _pose(parts, poses, x, R, b)
+        pose(parts, poses, x, R, b)
         first = parts.first[b]
         for k in range(6):
             poses.box[b, k] = poses.box[first, k]

@@ -31,7 +31,7 @@ from ..core.timetable import TIME
 from ..core.projection import project
 from ..core.model import SHAPE_SPHERE
 from .broad import body_reach, find_pairs, travel
-from .compound import Found, compound_contacts, fold, material_of, place
+from .compound import Found, fold, material_of, place, pose, posed_contacts
 from .data import IMPACT, PRESSING
 from .narrow import pair_contacts
 from .joints import close_joints, prepare_joints, sweep_joints
@@ -80,12 +80,15 @@ def _mix(mats, a, b):
 
 @kernel
 def _compound(ct, sw, mats, y, R, a, b, margin, first, parts, poses):
-    """The contacts of a pair with a compound body at slots first.. (compound.py, every pair of parts): turned to
-    the pair's order (a, b) with features unique in it (compound.fold), each with its parts' materials. Returns
-    their count."""
+    """The contacts of a pair with a compound body at slots first.. (compound.py, every pair of parts; its compound
+    bodies posed by `place` this step): turned to the pair's order (a, b) with features unique in it
+    (compound.fold), each with its parts' materials. Returns their count."""
+    for body in (a, b):
+        if parts.count[body] == 0:
+            pose(parts, poses, y, R, body)
     out = Found(ct.point[first:], ct.normal[first:], ct.depth[first:], ct.feature[first:], ct.a[first:],
                 ct.b[first:])
-    k = compound_contacts(parts, poses, y, R, a, b, margin, out, sw.work)
+    k = posed_contacts(parts, poses, a, b, margin, out, sw.work)
     for c in range(min(k, len(out.depth))):
         part_a, part_b = fold(parts, out, c, a, b)
         mu, e = _mix(mats, material_of(parts, a, part_a), material_of(parts, b, part_b))
@@ -140,7 +143,7 @@ def _keep_old(ct):
 
 
 @kernel
-def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach):
+def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach, feature):
     i = ev.count[0]
     ev.count[0] = i + 1
     if i >= len(ev.rows):
@@ -149,13 +152,13 @@ def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach):
     row[0], row[1], row[2], row[3] = t, kind, a, b
     for k in range(3):
         row[4 + k], row[7 + k] = point[k], normal[k]
-    row[10], row[11], row[12] = impulse, slip, approach
+    row[10], row[11], row[12], row[13] = impulse, slip, approach, feature
 
 
 @kernel
 def _pair_events(ct, ev, t, h, pressing):
     """One event per pair of consecutive contacts: its impacts now (pressing False), or, at a frame, its impulse
-    since the last frame (pressing True; acc reset)."""
+    since the last frame (pressing True; acc reset); with the feature of the contact that took the most."""
     c = 0
     count = ct.count[0]
     while c < count:
@@ -163,6 +166,7 @@ def _pair_events(ct, ev, t, h, pressing):
         while end < count and ct.a[end] == ct.a[c] and ct.b[end] == ct.b[c]:
             end += 1
         impulse, px, py, pz, nx, ny, nz, slip, approach, soonest = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, h
+        most, feature = 0.0, 0
         for i in range(c, end):
             if pressing:
                 p = ct.acc[i]
@@ -176,6 +180,8 @@ def _pair_events(ct, ev, t, h, pressing):
                     slip = max(slip, math.sqrt(ct.before[i, 1] ** 2 + ct.before[i, 2] ** 2))
             if p <= 0.0:
                 continue
+            if p > most:
+                most, feature = p, ct.feature[i]
             impulse += p
             px, py, pz = px + p * ct.point[i, 0], py + p * ct.point[i, 1], pz + p * ct.point[i, 2]
             nx, ny, nz = nx + p * ct.normal[i, 0], ny + p * ct.normal[i, 1], nz + p * ct.normal[i, 2]
@@ -183,7 +189,7 @@ def _pair_events(ct, ev, t, h, pressing):
             size = math.sqrt(nx * nx + ny * ny + nz * nz)
             kind = PRESSING if pressing else IMPACT
             _event(ev, t if pressing else t + soonest, kind, ct.a[c], ct.b[c], (px / impulse, py / impulse, pz / impulse),
-                   (nx / size, ny / size, nz / size), impulse, slip, approach)
+                   (nx / size, ny / size, nz / size), impulse, slip, approach, feature)
         c = end
 
 
