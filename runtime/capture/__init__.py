@@ -14,6 +14,8 @@ the collision stage of the exact path stands (docs/collisions.md, "Many contacts
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import data as D
@@ -237,10 +239,11 @@ class CaptureStepper:
 
         self.compiled, self.stage = compiled, stage
         g = float(np.linalg.norm(plan.gravity)) if getattr(plan, "gravity", None) is not None else 9.81
-        # BOUNCE_SPEED keeps the solve's residual speeds from bouncing (loop.py); where no pair can bounce (every
-        # restitution 0: the clock), the exact path's resting speed says what is an impact (a tick lands at 4 cm/s)
-        bounce = BOUNCE_SPEED if can_bounce(plan.collisions) else 0.0
-        self.resting = max(RESTING_SPEED, RESTING_STEPS * g * plan.step, bounce)
+        self.resting = max(RESTING_SPEED, RESTING_STEPS * g * plan.step, BOUNCE_SPEED)
+        # where no pair can bounce (every restitution 0: the clock), a contact that lands faster than the exact
+        # path's resting speed is an impact event, its impulse the solve's (loop._touchdowns: a tick lands at 7 cm/s)
+        exact = max(RESTING_SPEED, RESTING_STEPS * g * plan.step)
+        self.touch = math.inf if can_bounce(plan.collisions) else exact
         self.energy_tol = 1e-6 * max(energy_scale(plan), 1e-12)
         # the procedural plan's substeps are the capturing loop's steps (a position-level plan steps coarsely)
         self.substeps = int(plan.scene.solver.substeps) if plan.solver == "procedural" else 1
@@ -263,7 +266,7 @@ class CaptureStepper:
             part = frames._replace(**{name: getattr(frames, name)[first:] for name in _PER_FRAME})
             taken = self._run(c.model, act, c.scratch, st.contacts, st.sweep, st.joints, st.checks, st.events, st.pseudo,
                               st.held, st.materials, y, table[done * self.grid:], hs, total - done, self.grid, later, part,
-                              status, self.resting, DEPTH_LIMIT, self.energy_tol, st.parts, st.poses)
+                              status, self.resting, DEPTH_LIMIT, self.energy_tol, st.parts, st.poses, self.touch)
             st.drain()
             first += int(np.count_nonzero(later <= taken))
             done += taken

@@ -117,6 +117,22 @@ def _narrow(m, s, ct, sw, mats, y, h, parts, poses):
 
 
 @kernel
+def _touchdowns(ct, h, touch):
+    """Mark the contacts that land this step faster than `touch` (m/s; before the step's impulses, closing their
+    gap within it) without having pressed in the last step (warm start lam_n 0): approach <- their (negative)
+    normal speed, which an impact of theirs (`impacts`: approach > 0) overrides. They are impact events whose
+    impulse is the solve's (`_pair_events`). Called between `prepare` and `impacts` (lam holds the warm start).
+
+    touch is the exact path's resting speed in a scene where no pair can bounce (capture CaptureStepper), else
+    inf: there impacts in generations below BOUNCE_SPEED are moot, and letting them strike (their pairwise
+    impulses are blind to the joints) threw the clock's wheel back at 0.26 rad/s from each tick."""
+    for c in range(ct.count[0]):
+        u = ct.before[c, 0]
+        if u < -touch and ct.lam[c, 0] <= 0.0 and u * h <= -ct.push[c]:
+            ct.approach[c] = u
+
+
+@kernel
 def _keep_old(ct):
     """The step's contacts become the last step's, sorted by key (Shell's sort, moving lam and acc along)."""
     count = ct.count[0]
@@ -157,8 +173,9 @@ def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach, feature):
 
 @kernel
 def _pair_events(ct, ev, t, h, pressing):
-    """One event per pair of consecutive contacts: its impacts now (pressing False), or, at a frame, its impulse
-    since the last frame (pressing True; acc reset); with the feature of the contact that took the most."""
+    """One event per pair of consecutive contacts: its impacts now (pressing False; an impact's impulse, or a
+    touchdown's (approach < 0: `_touchdowns`) the solve's), or, at a frame, its impulse since the last frame
+    (pressing True; acc reset); with the feature of the contact that took the most."""
     c = 0
     count = ct.count[0]
     while c < count:
@@ -172,11 +189,12 @@ def _pair_events(ct, ev, t, h, pressing):
                 p = ct.acc[i]
                 ct.acc[i] = 0.0
             else:
-                p = ct.hit[i] if ct.approach[i] > 0.0 else 0.0  # (struck, approaching faster than resting)
+                # (struck, approaching faster than resting; or landed: a touchdown)
+                p = ct.hit[i] if ct.approach[i] > 0.0 else (ct.lam[i, 0] if ct.approach[i] < 0.0 else 0.0)
                 if p > 0.0:
                     # the time its gap closed within the step, at the speed it approached when struck
-                    soonest = min(soonest, max(0.0, -ct.depth[i]) / ct.approach[i])
-                    approach = max(approach, ct.approach[i])
+                    soonest = min(soonest, max(0.0, -ct.depth[i]) / abs(ct.approach[i]))
+                    approach = max(approach, abs(ct.approach[i]))
                     slip = max(slip, math.sqrt(ct.before[i, 1] ** 2 + ct.before[i, 2] ** 2))
             if p <= 0.0:
                 continue
@@ -244,10 +262,11 @@ def _split(m, ct, y, h, parts):
 
 @kernel
 def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit, energy_tol,
-                 since, last, parts, poses):
+                 since, last, parts, poses, touch):
     """One step of h from grid row j, `since` s after its time (a part of a step taken in parts; the kinematic
     bodies placed at row j + grid after the `last` part) (module docstring). Returns False when the buffers were too
-    small (y is then as it was at the step's start). parts, poses: the compound bodies (compound.py)."""
+    small (y is then as it was at the step's start). parts, poses: the compound bodies (compound.py); touch: the
+    speed of a landing that is an impact event without an impact (`_touchdowns`)."""
     t = table[j, TIME] + since
     copy_state(y, s.start)
     step_forces(m, s, y, table, j, h)  # (R current)
@@ -266,6 +285,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
     ct.count[0] = found
     n = len(y) - 1
     prepare(m.bodies, s.inv_inertia, ct, y, n, h)
+    _touchdowns(ct, h, touch)
     jointed = len(act.rows) > 0
     if jointed:
         evaluate_rows(m, act, s, y, table, j)
@@ -309,10 +329,11 @@ def _record(m, act, s, y, table, j, frames, f):
 
 @entry
 def run(m, act, s, ct, sw, jt, chk, ev, pseudo, held, mats, y, table, h, steps, grid, frame_step, frames, status,
-        resting, depth_limit, energy_tol, parts, poses):
+        resting, depth_limit, energy_tol, parts, poses, touch):
     """Advance y by `steps` steps of h (module docstring); frames recorded at frame_step (steps counted from the
     call's start, 0: before the first). Returns the steps taken; status (4,) <- (code, step, body, 0). parts (read
-    only) and poses (scratch): the compound bodies (compound.py; a scene without any: every count 0)."""
+    only) and poses (scratch): the compound bodies (compound.py; a scene without any: every count 0); touch: the
+    landing speed of an impact event without an impact (`_touchdowns`; inf: none)."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
@@ -325,7 +346,7 @@ def run(m, act, s, ct, sw, jt, chk, ev, pseudo, held, mats, y, table, h, steps, 
         grown = True
         for piece in range(pieces):
             grown = capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h / pieces, resting,
-                                 depth_limit, energy_tol, piece * h / pieces, piece == pieces - 1, parts, poses)
+                                 depth_limit, energy_tol, piece * h / pieces, piece == pieces - 1, parts, poses, touch)
             if not grown:
                 break
         if not grown:
