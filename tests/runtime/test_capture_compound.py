@@ -1,6 +1,7 @@
 """Compound bodies on the capturing contact path (runtime/capture/compound.py through loop.py): a body of two boxes
 dropped flat comes to rest on its lowest part, on a floor or on a box, with its energy never rising; a scene's
-report says it took the path; the clock (scenes/clock.isaac) takes it by the rule for jointed scenes; a scene
+report says it took the path; the clock (scenes/clock.isaac) takes it by the rule for jointed scenes and its ticks
+are impact events that name the tooth and the pallet; a scene
 whose pairs of parts a contact's key cannot name stays exact.
 
 The answer of the drops: the body is a 10 cm cube (0.5 kg, centred at x = -5 cm) joined to a 10 x 6 x 10 cm box
@@ -85,6 +86,12 @@ def test_the_clock_takes_the_capturing_path(tmp_path):
     assert contact["path"] == "capturing", contact
     assert contact["why"] == "the contacts changed 20 times within 50 steps"
     assert contact["deepest"] < 1e-3 and contact["steps_too_deep"] == 0
+    # a tick on this path: a tooth's tip landing on a locking face, an impact event naming both parts
+    events = json.loads((out / "events.json").read_text())
+    ticks = [e for e in events if e["kind"] == "impact" and e["time"] > contact["since"]]
+    assert len(ticks) == 2, ticks  # (0.42 s and 0.89 s: one at each pallet)
+    assert all(e["parts"][0].startswith("tip") and e["parts"][1].endswith("_lock") for e in ticks)
+    assert all(0.05 < e["normal_speed"] < 0.1 for e in ticks)
 
 
 def test_a_pair_with_more_pairs_of_parts_than_a_key_names_stays_exact():
