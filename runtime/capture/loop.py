@@ -123,9 +123,10 @@ def _touchdowns(ct, h, touch):
     normal speed, which an impact of theirs (`impacts`: approach > 0) overrides. They are impact events whose
     impulse is the solve's (`_pair_events`). Called between `prepare` and `impacts` (lam holds the warm start).
 
-    touch is the exact path's resting speed in a scene where no pair can bounce (capture CaptureStepper), else
-    inf: there impacts in generations below BOUNCE_SPEED are moot, and letting them strike (their pairwise
-    impulses are blind to the joints) threw the clock's wheel back at 0.26 rad/s from each tick."""
+    touch is the exact path's resting speed in a scene where no pair can bounce (capture CaptureStepper), else inf
+    (none: a scene that can bounce keeps its events). Such a landing is not struck in generations: striking it
+    (restitution 0, but with pairwise impulses blind to the joints) threw the clock's wheel back at 0.26 rad/s from
+    each tick, three strikes a tick."""
     for c in range(ct.count[0]):
         u = ct.before[c, 0]
         if u < -touch and ct.lam[c, 0] <= 0.0 and u * h <= -ct.push[c]:
