@@ -4,6 +4,7 @@ the exact path (runtime/collide: each impact located in time, each change of the
 
     broad.py    world boxes grown by each body's travel, hashed into a grid, neighbours paired
     narrow.py   closed-form contact points of a pair (boxes.py: box-box)
+    compound.py a pair with a compound body: every pair of parts whose boxes meet, with narrow.py's tests
     solve.py    the velocity-level contact problem, projected Gauss-Seidel, warm-started by feature
     loop.py     the step: kick, contacts, solve, drift, checks, events, frames
     data.py     the run's contacts, pairs, checks and events
@@ -12,6 +13,8 @@ the exact path (runtime/collide: each impact located in time, each change of the
 the collision stage of the exact path stands (docs/collisions.md, "Many contacts").
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -28,22 +31,35 @@ DEPTH_LIMIT = 1e-3
 
 
 def eligible(plan) -> str | None:
-    """Why the scene cannot take the capturing path, or None when it can: every collidable shape has a compiled
-    closed form (no compound bodies, no meshes)."""
-    from .kinds import closed_form
+    """Why the scene cannot take the capturing path, or None when it can: every collidable shape, and every part of
+    a compound body, has a compiled closed form against every shape or part it may meet (no meshes), and no pair of
+    bodies has more pairs of parts than a contact's key can name (kinds.LOCAL_FEATURES)."""
+    from .kinds import LOCAL_FEATURES, closed_form
 
     cp = plan.collisions
     if cp is None:
         return "no collisions"
-    if cp.table.elements is not None:
-        return "compound bodies"
-    kinds = {int(cp.table.kind[i]) for i in cp.collidable}
-    moving = {int(cp.table.kind[i]) for i in cp.collidable if plan.dynamic[i]}
+    elements = cp.table.elements
+    if elements is not None:
+        # the two bodies of most parts (a body that is its own shape has one element)
+        largest = np.sort(np.maximum(elements.count[cp.collidable], 1))[-2:]
+        if int(np.prod(largest)) * LOCAL_FEATURES > D.FEATURES:
+            return "compound bodies with more pairs of parts than a contact key holds"
+    kinds = set().union(*(_kinds(cp, i) for i in cp.collidable))
+    moving = set().union(*(_kinds(cp, i) for i in cp.collidable if plan.dynamic[i]))
     for ka in sorted(moving):
         for kb in sorted(kinds):
             if not closed_form(ka, kb):
                 return "a pair without a compiled closed form"
     return None
+
+
+def _kinds(cp, i) -> set:
+    """The shape kinds of body i: its parts' for a compound body, else its own."""
+    elements = cp.table.elements
+    if elements is not None and elements.count[i] > 0:
+        return {int(k) for k in elements.table.kind[elements.of(i)]}
+    return {int(cp.table.kind[i])}
 
 
 def jointed(plan) -> bool:
@@ -91,6 +107,7 @@ class CaptureStage:
         self.pseudo = np.zeros((n + 1, 13))
         self.held = np.zeros((n + 1, 13))  # (the state at a step's start, while the loop takes it in parts)
         self.materials = D.Materials(*_materials(cp, n))
+        self.parts, self.poses = _compounds(cp, n)
         self.switched_at = sim.state.t
 
     def start(self) -> None:
@@ -133,10 +150,23 @@ class CaptureStage:
             a, b = int(row[2]), int(row[3])
             kind = "impact" if row[1] == D.IMPACT else "contact"
             self.log.events.append(self.log._event(row[0], a, b, row[4:7], row[7:10], row[10], row[11], row[12],
-                                                   kind))
+                                                   kind, self._parts(a, b, int(row[13]))))
         if count > len(ev.rows):
             self.events = D.events(2 * count)
         ev.count[0] = 0
+
+    def _parts(self, a: int, b: int, feature: int) -> list:
+        """[part of a, part of b] (names, None for a body of one shape) that a contact's feature names: a compound
+        pair's is folded as local + LOCAL_FEATURES (part_a max(count_b, 1) + part_b) (compound.fold)."""
+        from .kinds import LOCAL_FEATURES
+
+        elements = self.cp.table.elements
+        if elements is None or not (elements.count[a] or elements.count[b]):
+            return [None, None]
+        pair, count_b = feature // LOCAL_FEATURES, max(int(elements.count[b]), 1)
+        part_a = pair // count_b if elements.count[a] else -1
+        part_b = pair % count_b if elements.count[b] else -1
+        return [elements.part_name(a, part_a), elements.part_name(b, part_b)]
 
     def report(self) -> dict:
         """What the run's report says of this path (report.json `contact`)."""
@@ -152,12 +182,46 @@ class CaptureStage:
                 "steps_creating_energy": int(c[1])}
 
 
+def can_bounce(cp) -> bool:
+    """Whether a pair that may touch can have a restitution above 0: a collidable body or part with one, or without
+    a material (it may take the default's)."""
+    from ..collide import DEFAULT_RESTITUTION
+
+    elements = cp.table.elements
+    rows = np.concatenate([elements.of(i) if elements is not None else [i] for i in cp.collidable]).astype(np.int64)
+    restitution = np.where(cp.has_material[rows], cp.restitution[rows], DEFAULT_RESTITUTION)
+    return bool(np.any(restitution > 0.0))
+
+
 def _materials(cp, n):
+    """friction, restitution, has of the bodies (0..n-1), the world (n), then the parts of the compound bodies
+    (element e at e + 1: compound.material_of); the defaults of a pair without materials."""
     from ..collide import DEFAULT_FRICTION, DEFAULT_RESTITUTION
 
-    friction, restitution, has = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1, np.bool_)
-    friction[:n], restitution[:n], has[:n] = cp.friction[:n], cp.restitution[:n], cp.has_material[:n]
+    size = len(cp.friction) + 1
+    friction, restitution, has = np.zeros(size), np.zeros(size), np.zeros(size, np.bool_)
+    for mine, theirs in ((friction, cp.friction), (restitution, cp.restitution), (has, cp.has_material)):
+        mine[:n], mine[n + 1:] = theirs[:n], theirs[n:]
     return friction, restitution, has, np.array([DEFAULT_FRICTION, DEFAULT_RESTITUTION])
+
+
+def _compounds(cp, n):
+    """(Parts, Poses) of capture/compound.py: the compound bodies' parts (collide/compound_compiled.py), or, in a
+    scene without any, arrays of the same types in which every body is its own shape."""
+    from .compound import Parts, Poses
+
+    if cp.table.elements is not None:
+        from ..collide.compound_compiled import compound_arrays
+
+        return compound_arrays(cp.table.elements)
+    from ..core.model import Shapes
+
+    f, i = (lambda *shape: np.zeros(shape)), (lambda *shape: np.zeros(shape, np.int64))
+    shapes = Shapes(i(n), f(n), f(n, 3), f(n), f(n, 3), f(n, 3))
+    turn = np.ascontiguousarray(np.tile(np.eye(3), (n, 1, 1)))
+    parts = Parts(shapes, np.arange(n, dtype=np.int64), np.full(n, -1, np.int64), f(n, 3), turn, i(n), i(n),
+                  i(7, 7), f(n))
+    return parts, Poses(f(n, 3), f(n, 3, 3), f(n, 6), f(1))
 
 
 class CaptureStepper:
@@ -175,6 +239,10 @@ class CaptureStepper:
         self.compiled, self.stage = compiled, stage
         g = float(np.linalg.norm(plan.gravity)) if getattr(plan, "gravity", None) is not None else 9.81
         self.resting = max(RESTING_SPEED, RESTING_STEPS * g * plan.step, BOUNCE_SPEED)
+        # where no pair can bounce (every restitution 0: the clock), a contact that lands faster than the exact
+        # path's resting speed is an impact event, its impulse the solve's (loop._touchdowns: a tick lands at 7 cm/s)
+        exact = max(RESTING_SPEED, RESTING_STEPS * g * plan.step)
+        self.touch = math.inf if can_bounce(plan.collisions) else exact
         self.energy_tol = 1e-6 * max(energy_scale(plan), 1e-12)
         # the procedural plan's substeps are the capturing loop's steps (a position-level plan steps coarsely)
         self.substeps = int(plan.scene.solver.substeps) if plan.solver == "procedural" else 1
@@ -197,7 +265,7 @@ class CaptureStepper:
             part = frames._replace(**{name: getattr(frames, name)[first:] for name in _PER_FRAME})
             taken = self._run(c.model, act, c.scratch, st.contacts, st.sweep, st.joints, st.checks, st.events, st.pseudo,
                               st.held, st.materials, y, table[done * self.grid:], hs, total - done, self.grid, later, part,
-                              status, self.resting, DEPTH_LIMIT, self.energy_tol)
+                              status, self.resting, DEPTH_LIMIT, self.energy_tol, st.parts, st.poses, self.touch)
             st.drain()
             first += int(np.count_nonzero(later <= taken))
             done += taken

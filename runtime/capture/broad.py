@@ -3,7 +3,9 @@ then a uniform grid hashed into buckets (spatial hashing): a cell as wide as the
 of its box's low corner, so two boxes that overlap are in the same cell or in neighbouring ones, and each body
 looks at its own cell and the 13 neighbours on one side (every neighbouring pair of cells once). A body whose box
 is more than BIG times the mean box wide would make the cells as large: it is tested against every box instead.
-Planes are tested against every box by the box's lowest corner.
+Planes are tested against every box by the box's lowest corner. A compound
+body's box is the union of its parts' (compound.place, in poses.box), its reach its farthest part point
+(parts.reach): the model's shape of a compound body is a box about its centre that holds every part, larger.
 
 Cost: n for the boxes, the hashing and the look-ups, plus the pairs in neighbouring cells (n at a given density).
 A sort along x and a sweep cost n times the bodies in a slab as wide as a box: 1000 spheres piled ten high met
@@ -59,20 +61,33 @@ SPECULATION = 2.0
 
 
 @kernel
-def travel(shapes, i, y, h):
+def body_reach(shapes, parts, i):
+    """The farthest point of body i from its centre of mass, m: its farthest part's for a compound body."""
+    if parts.count[i] > 0:
+        return parts.reach[i]
+    return reach(shapes, i)
+
+
+@kernel
+def travel(shapes, i, y, h, parts):
     """How far any point of body i may move in a step of h: SPECULATION (|v| + |w| reach) h at its present
     velocities (the step's impulses may send it off faster than it came)."""
     v = math.sqrt(y[i, 7] ** 2 + y[i, 8] ** 2 + y[i, 9] ** 2)
     w = math.sqrt(y[i, 10] ** 2 + y[i, 11] ** 2 + y[i, 12] ** 2)
-    return SPECULATION * (v + w * reach(shapes, i)) * h
+    return SPECULATION * (v + w * body_reach(shapes, parts, i)) * h
 
 
 @kernel
-def _boxes(shapes, sw, y, R, h, margin):
-    """sw.box[i] <- body i's world box, grown by the margin and its travel over the step."""
+def _boxes(shapes, sw, y, R, h, margin, parts, poses):
+    """sw.box[i] <- body i's world box, grown by the margin and its travel over the step (a compound body's: the
+    union of its parts' boxes, poses.box[i])."""
     for idx in range(len(sw.order)):
         i = sw.order[idx]
-        grow = margin + travel(shapes, i, y, h)
+        grow = margin + travel(shapes, i, y, h, parts)
+        if parts.count[i] > 0:
+            for k in range(3):
+                sw.box[i, k], sw.box[i, 3 + k] = poses.box[i, k] - grow, poses.box[i, 3 + k] + grow
+            continue
         for k in range(3):
             # a mesh's box is about its local centre, turned with the body
             centre = y[i, k] + R[i, k, 0] * shapes.centre[i, 0] + R[i, k, 1] * shapes.centre[i, 1] + R[i, k, 2] * shapes.centre[i, 2]
@@ -221,11 +236,12 @@ def _grid_pairs(sw, dynamic, n, i):
 
 
 @kernel
-def find_pairs(shapes, sw, dynamic, y, R, h, margin):
-    """sw.pairs[:sw.count[0]] <- the pairs whose grown boxes overlap (count beyond len(sw.pairs): grow, retake)."""
+def find_pairs(shapes, sw, dynamic, y, R, h, margin, parts, poses):
+    """sw.pairs[:sw.count[0]] <- the pairs whose grown boxes overlap (count beyond len(sw.pairs): grow, retake).
+    The compound bodies' boxes are poses.box's (compound.place, before)."""
     n = len(y) - 1
     sw.count[0] = 0
-    _boxes(shapes, sw, y, R, h, margin)
+    _boxes(shapes, sw, y, R, h, margin, parts, poses)
     cell, big = _grid_cell(sw)
     _hash_bodies(sw, cell, big)
     for idx in range(len(sw.order)):

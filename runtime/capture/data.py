@@ -47,8 +47,9 @@ Checks = namedtuple("Checks", "worst counts")
 # the joints' rows (joints.py), by global row: lam (M,) impulse of the last step, mass (M,), target (M,) velocity
 JointRows = namedtuple("JointRows", "lam mass target")
 # events the step writes: one row per pair and impact, or per pair pressing at a frame
-# [time, kind (0 impact, 1 contact), a, b, point (3), normal (3), impulse, tangential speed, normal speed]
-EVENT_WIDTH = 13
+# [time, kind (0 impact, 1 contact), a, b, point (3), normal (3), impulse, tangential speed, normal speed, the
+# feature of the pair's contact that took the most impulse (a compound pair's names its parts: compound.fold)]
+EVENT_WIDTH = 14
 IMPACT, PRESSING = 0, 1
 Events = namedtuple("Events", "rows count")
 # friction, restitution (n+1,) and has (n+1,) bool of every body; default (2,): friction and restitution of a pair

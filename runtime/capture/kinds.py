@@ -12,6 +12,12 @@ HANDLED = {(SHAPE_SPHERE, k) for k in (SHAPE_SPHERE, SHAPE_PLANE, SHAPE_BOX, SHA
     (SHAPE_CYLINDER, SHAPE_CYLINDER), (SHAPE_CYLINDER, SHAPE_CAPSULE)}
 
 
+# a compound pair's contacts are keyed, in the capturing loop, by their shape's local feature plus this many times
+# the number of their pair of parts (compound.fold): every local feature is below it (boxes.py's largest is
+# EDGE + 10 = 4618), and a pair of bodies may have at most data.FEATURES / LOCAL_FEATURES = 2048 pairs of parts
+LOCAL_FEATURES = 1 << 13
+
+
 def closed_form(kind_a: int, kind_b: int) -> bool:
     """Whether narrow.pair_contacts handles a pair of shape kinds (in either order)."""
     return (int(kind_a), int(kind_b)) in HANDLED or (int(kind_b), int(kind_a)) in HANDLED

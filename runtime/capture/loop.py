@@ -3,8 +3,9 @@ forces, so contacts that appear, part, stick or slide never leave the loop (docs
 Moreau-Jean):
 
     1. forces at the step's start; v- = v + h F / m, w- = w + h I^-1 tau       (kick)
-    2. broad phase (broad.py), narrow phase of every candidate pair (narrow.py), with the gap each pair can close
-       in the step (speculative contacts: nothing tunnels while it moves less than the margin it was given)
+    2. broad phase (broad.py), narrow phase of every candidate pair (narrow.py; a pair with a compound body: each
+       pair of parts, compound.py), with the gap each pair can close in the step (speculative contacts: nothing
+       tunnels while it moves less than the margin it was given)
     3. the contact solve (solve.py): impacts in generations, then impulses so that v+ meets the contacts (friction
        included) and the joints' rows (joints.py), one Gauss-Seidel sweep over both after another, warm-started
     4. x += h v+; the free rotation of w+ over h (energy-keeping, procedural/substep.py); the position pass's
@@ -29,7 +30,8 @@ from ..core.rows import evaluate_rows
 from ..core.timetable import TIME
 from ..core.projection import project
 from ..core.model import SHAPE_SPHERE
-from .broad import find_pairs, reach, travel
+from .broad import body_reach, find_pairs, travel
+from .compound import Found, fold, material_of, place, pose, posed_contacts
 from .data import IMPACT, PRESSING
 from .narrow import pair_contacts
 from .joints import close_joints, prepare_joints, sweep_joints
@@ -77,13 +79,34 @@ def _mix(mats, a, b):
 
 
 @kernel
-def _narrow(m, s, ct, sw, mats, y, h):
+def _compound(ct, sw, mats, y, R, a, b, margin, first, parts, poses):
+    """The contacts of a pair with a compound body at slots first.. (compound.py, every pair of parts; its compound
+    bodies posed by `place` this step): turned to the pair's order (a, b) with features unique in it
+    (compound.fold), each with its parts' materials. Returns their count."""
+    for body in (a, b):
+        if parts.count[body] == 0:
+            pose(parts, poses, y, R, body)
+    out = Found(ct.point[first:], ct.normal[first:], ct.depth[first:], ct.feature[first:], ct.a[first:],
+                ct.b[first:])
+    k = posed_contacts(parts, poses, a, b, margin, out, sw.work)
+    for c in range(min(k, len(out.depth))):
+        part_a, part_b = fold(parts, out, c, a, b)
+        mu, e = _mix(mats, material_of(parts, a, part_a), material_of(parts, b, part_b))
+        ct.mu[first + c], ct.e[first + c] = mu, e
+    return k
+
+
+@kernel
+def _narrow(m, s, ct, sw, mats, y, h, parts, poses):
     """Contacts of every candidate pair; returns how many were found (beyond the capacity: grow)."""
     found = 0
     capacity = len(ct.a)
     for p in range(sw.count[0]):
         a, b = sw.pairs[p, 0], sw.pairs[p, 1]
-        margin = m.margin + travel(m.shapes, a, y, h) + travel(m.shapes, b, y, h)
+        margin = m.margin + travel(m.shapes, a, y, h, parts) + travel(m.shapes, b, y, h, parts)
+        if parts.count[a] > 0 or parts.count[b] > 0:
+            found += _compound(ct, sw, mats, y, s.R, a, b, margin, found, parts, poses)
+            continue
         k = pair_contacts(m.shapes, a, b, y, s.R, margin, ct.point, ct.normal, ct.depth, ct.feature, found, capacity,
                            sw.work)
         mu, e = _mix(mats, a, b)
@@ -94,7 +117,24 @@ def _narrow(m, s, ct, sw, mats, y, h):
 
 
 @kernel
-def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach):
+def _touchdowns(ct, h, touch):
+    """Mark the contacts that land this step faster than `touch` (m/s; before the step's impulses, closing their
+    gap within it) without having pressed in the last step (warm start lam_n 0): approach <- their (negative)
+    normal speed, which an impact of theirs (`impacts`: approach > 0) overrides. They are impact events whose
+    impulse is the solve's (`_pair_events`). Called between `prepare` and `impacts` (lam holds the warm start).
+
+    touch is the exact path's resting speed in a scene where no pair can bounce (capture CaptureStepper), else inf
+    (none: a scene that can bounce keeps its events). Such a landing is not struck in generations: striking it
+    (restitution 0, but with pairwise impulses blind to the joints) threw the clock's wheel back at 0.26 rad/s from
+    each tick, three strikes a tick."""
+    for c in range(ct.count[0]):
+        u = ct.before[c, 0]
+        if u < -touch and ct.lam[c, 0] <= 0.0 and u * h <= -ct.push[c]:
+            ct.approach[c] = u
+
+
+@kernel
+def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach, feature):
     i = ev.count[0]
     ev.count[0] = i + 1
     if i >= len(ev.rows):
@@ -103,13 +143,14 @@ def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach):
     row[0], row[1], row[2], row[3] = t, kind, a, b
     for k in range(3):
         row[4 + k], row[7 + k] = point[k], normal[k]
-    row[10], row[11], row[12] = impulse, slip, approach
+    row[10], row[11], row[12], row[13] = impulse, slip, approach, feature
 
 
 @kernel
 def _pair_events(ct, ev, t, h, pressing):
-    """One event per pair of consecutive contacts: its impacts now (pressing False), or, at a frame, its impulse
-    since the last frame (pressing True; acc reset)."""
+    """One event per pair of consecutive contacts: its impacts now (pressing False; an impact's impulse, or a
+    touchdown's (approach < 0: `_touchdowns`) the solve's), or, at a frame, its impulse since the last frame
+    (pressing True; acc reset); with the feature of the contact that took the most."""
     c = 0
     count = ct.count[0]
     while c < count:
@@ -117,19 +158,23 @@ def _pair_events(ct, ev, t, h, pressing):
         while end < count and ct.a[end] == ct.a[c] and ct.b[end] == ct.b[c]:
             end += 1
         impulse, px, py, pz, nx, ny, nz, slip, approach, soonest = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, h
+        most, feature = 0.0, 0
         for i in range(c, end):
             if pressing:
                 p = ct.acc[i]
                 ct.acc[i] = 0.0
             else:
-                p = ct.hit[i] if ct.approach[i] > 0.0 else 0.0  # (struck, approaching faster than resting)
+                # (struck, approaching faster than resting; or landed: a touchdown)
+                p = ct.hit[i] if ct.approach[i] > 0.0 else (ct.lam[i, 0] if ct.approach[i] < 0.0 else 0.0)
                 if p > 0.0:
                     # the time its gap closed within the step, at the speed it approached when struck
-                    soonest = min(soonest, max(0.0, -ct.depth[i]) / ct.approach[i])
-                    approach = max(approach, ct.approach[i])
+                    soonest = min(soonest, max(0.0, -ct.depth[i]) / abs(ct.approach[i]))
+                    approach = max(approach, abs(ct.approach[i]))
                     slip = max(slip, math.sqrt(ct.before[i, 1] ** 2 + ct.before[i, 2] ** 2))
             if p <= 0.0:
                 continue
+            if p > most:
+                most, feature = p, ct.feature[i]
             impulse += p
             px, py, pz = px + p * ct.point[i, 0], py + p * ct.point[i, 1], pz + p * ct.point[i, 2]
             nx, ny, nz = nx + p * ct.normal[i, 0], ny + p * ct.normal[i, 1], nz + p * ct.normal[i, 2]
@@ -137,7 +182,7 @@ def _pair_events(ct, ev, t, h, pressing):
             size = math.sqrt(nx * nx + ny * ny + nz * nz)
             kind = PRESSING if pressing else IMPACT
             _event(ev, t if pressing else t + soonest, kind, ct.a[c], ct.b[c], (px / impulse, py / impulse, pz / impulse),
-                   (nx / size, ny / size, nz / size), impulse, slip, approach)
+                   (nx / size, ny / size, nz / size), impulse, slip, approach, feature)
         c = end
 
 
@@ -175,7 +220,7 @@ def _drift(m, s, y, pseudo, moved, h):
 
 
 @kernel
-def _split(m, ct, y, h):
+def _split(m, ct, y, h, parts):
     """In how many steps to take the step of h: its bodies in contact last step that are not round turn their
     farthest point by at most TURN_PER_STEP in each (at most MAX_SPLIT steps). A box spinning onto another touches
     edge on edge, one pair of edges a step, and a turn of 2.5 mm a step brought the next pair 3.5 mm deep."""
@@ -186,26 +231,28 @@ def _split(m, ct, y, h):
             if m.shapes.kind[b] == SHAPE_SPHERE or not m.bodies.dynamic[b]:
                 continue
             w = math.sqrt(y[b, 10] ** 2 + y[b, 11] ** 2 + y[b, 12] ** 2)
-            most = max(most, w * reach(m.shapes, b) * h)
+            most = max(most, w * body_reach(m.shapes, parts, b) * h)
     return min(MAX_SPLIT, max(1, int(math.ceil(most / TURN_PER_STEP))))
 
 
 @kernel
 def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit, energy_tol,
-                 since, last):
+                 since, last, parts, poses, touch):
     """One step of h from grid row j, `since` s after its time (a part of a step taken in parts; the kinematic
     bodies placed at row j + grid after the `last` part) (module docstring). Returns False when the buffers were too
-    small (y is then as it was at the step's start)."""
+    small (y is then as it was at the step's start). parts, poses: the compound bodies (compound.py); touch: the
+    speed of a landing that is an impact event without an impact (`_touchdowns`)."""
     t = table[j, TIME] + since
     copy_state(y, s.start)
     step_forces(m, s, y, table, j, h)  # (R current)
     world_inverse_inertia(m.bodies, s.R, s.inv_inertia)
     _kick(m.bodies, s, y, h)
-    find_pairs(m.shapes, sw, m.bodies.dynamic, y, s.R, h, m.margin)
+    place(parts, poses, y, s.R, sw.order)
+    find_pairs(m.shapes, sw, m.bodies.dynamic, y, s.R, h, m.margin, parts, poses)
     if sw.count[0] > len(sw.pairs):
         copy_state(s.start, y)
         return False
-    found = _narrow(m, s, ct, sw, mats, y, h)
+    found = _narrow(m, s, ct, sw, mats, y, h, parts, poses)
     ct.count[1] = found
     if found > len(ct.a):
         copy_state(s.start, y)
@@ -213,6 +260,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
     ct.count[0] = found
     n = len(y) - 1
     prepare(m.bodies, s.inv_inertia, ct, y, n, h)
+    _touchdowns(ct, h, touch)
     jointed = len(act.rows) > 0
     if jointed:
         evaluate_rows(m, act, s, y, table, j)
@@ -256,9 +304,11 @@ def _record(m, act, s, y, table, j, frames, f):
 
 @entry
 def run(m, act, s, ct, sw, jt, chk, ev, pseudo, held, mats, y, table, h, steps, grid, frame_step, frames, status,
-        resting, depth_limit, energy_tol):
+        resting, depth_limit, energy_tol, parts, poses, touch):
     """Advance y by `steps` steps of h (module docstring); frames recorded at frame_step (steps counted from the
-    call's start, 0: before the first). Returns the steps taken; status (4,) <- (code, step, body, 0)."""
+    call's start, 0: before the first). Returns the steps taken; status (4,) <- (code, step, body, 0). parts (read
+    only) and poses (scratch): the compound bodies (compound.py; a scene without any: every count 0); touch: the
+    landing speed of an impact event without an impact (`_touchdowns`; inf: none)."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
@@ -266,12 +316,12 @@ def run(m, act, s, ct, sw, jt, chk, ev, pseudo, held, mats, y, table, h, steps, 
         f += 1
     for step in range(steps):
         j = grid * step
-        parts = _split(m, ct, y, h)
+        pieces = _split(m, ct, y, h, parts)
         copy_state(y, held)
         grown = True
-        for part in range(parts):
-            grown = capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h / parts, resting,
-                                 depth_limit, energy_tol, part * h / parts, part == parts - 1)
+        for piece in range(pieces):
+            grown = capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h / pieces, resting,
+                                 depth_limit, energy_tol, piece * h / pieces, piece == pieces - 1, parts, poses, touch)
             if not grown:
                 break
         if not grown:
