@@ -22,6 +22,7 @@ import numpy as np
 
 from ..core import model as M
 from ..core.rotation import quat_conjugate, quat_multiply
+from .response import cross
 from .shapes import BOX, CAPSULE, FCL_POINT, PLANE, SPHERE, VERTEX_OF_B, local_feature, part_of
 
 # a contact whose points part faster than this after the impulses (m/s) is not kept: the bodies separate
@@ -71,11 +72,11 @@ def _basis(n: np.ndarray, along: np.ndarray | None = None) -> tuple:
         t = along - (along @ n) * n
         if np.linalg.norm(t) > 1e-12:
             t1 = t / np.linalg.norm(t)
-            return t1, np.cross(n, t1)
+            return t1, cross(n, t1)
     helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    t1 = np.cross(n, helper)
+    t1 = cross(n, helper)
     t1 /= np.linalg.norm(t1)
-    return t1, np.cross(n, t1)
+    return t1, cross(n, t1)
 
 
 class ContactSet:
@@ -150,8 +151,8 @@ class ContactSet:
         Rb = R[contact.b] if contact.b >= 0 else np.eye(3)
         normal = Rb @ contact.normal
         point = x[contact.a] + R[contact.a] @ contact.point - contact.radius * normal
-        va = v[contact.a] + np.cross(w[contact.a], point - x[contact.a])
-        vb = v[contact.b] + np.cross(w[contact.b], point - x[contact.b]) if contact.b >= 0 else np.zeros(3)
+        va = v[contact.a] + cross(w[contact.a], point - x[contact.a])
+        vb = v[contact.b] + cross(w[contact.b], point - x[contact.b]) if contact.b >= 0 else np.zeros(3)
         u = va - vb
         return u - (u @ normal) * normal
 
@@ -391,6 +392,6 @@ def _relative_velocity(found, i, x, v, w) -> np.ndarray:
     """Velocity of a's material point at the contact point minus b's."""
     p = found.point[i]
     a, b = int(found.a[i]), int(found.b[i])
-    va = v[a] + np.cross(w[a], p - x[a])
-    vb = v[b] + np.cross(w[b], p - x[b]) if b >= 0 else np.zeros(3)
+    va = v[a] + cross(w[a], p - x[a])
+    vb = v[b] + cross(w[b], p - x[b]) if b >= 0 else np.zeros(3)
     return va - vb
