@@ -16,9 +16,8 @@ from __future__ import annotations
 
 import math
 
-from .. import checks
 from ..outputs.outputset import OutputSet
-from ..run import RunResult, run_report, set_info, write_extras, write_outputs, RunOptions
+from ..run import RunResult, RunOptions, run_report, set_info, tolerance_checks, write_extras, write_outputs
 
 
 def realtime_section(result, breath, hub, frame_period: float) -> dict:
@@ -42,7 +41,7 @@ def build_report(result, options, breath, hub, frame_period: float) -> dict:
         result.simulation.energy()
     report = run_report(result.simulation, recorder, energy0, result.wall, result.error)
     report["warnings"] = list(options.scene_warnings) + report["warnings"]
-    report["checks"] = {"max_constraint_error": checks.constraint_check(report, options.max_constraint_error)}
+    report["checks"] = tolerance_checks(report, options.max_constraint_error)
     report["realtime"] = realtime_section(result, breath, hub, frame_period)
     return report
 

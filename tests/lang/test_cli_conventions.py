@@ -130,6 +130,54 @@ def test_constraints_no_pose_satisfies_are_named_at_their_position_and_exit_3(tm
                    "--max-constraint-error", "2 m")[0] == 0
 
 
+CRUSH = """scene crush {
+  time 0 s .. 1 s
+  gravity (0, -9.81, 0) m/s2
+  solver dynamics { integrator rk4  step 2 ms }
+  material pine { density 500 kg/m3  friction 0.5  restitution 0.3 }
+  material lead { density 50000 kg/m3  friction 0.5  restitution 0 }
+  body floor plane { material pine }
+  for i in 0 .. 2 {
+    for j in 0 .. 2 {
+      for l in 0 .. 2 {
+        body b{i}_{j}_{l} box { size (8, 8, 8) cm  material pine  at ((i - 0.5) * 12 cm, 5 cm + l * 12 cm, (j - 0.5) * 12 cm) }
+      }
+    }
+  }
+  body slab box { size (30, 10, 30) cm  material lead  at (0, 60, 0) cm }
+}
+"""
+
+
+def test_contacts_deeper_than_the_depth_limit_exit_3_at_the_deepest_pair(tmp_path, capsys):
+    """A 450 kg slab of lead dropped on eight boxes of 0.26 kg, at 2 ms: the capturing path's sweeps leave the
+    boxes several mm into one another (1760 times lighter than what presses them). A finished run that broke the
+    1 mm depth limit exits 3 with an error at the first body of the deepest pair; every output is written."""
+    scene = scene_file(tmp_path, CRUSH, "crush.isaac")
+    code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--no-viewer")
+    assert code == 3 and "Traceback" not in err
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    check, contact = report["checks"]["contact"], report["contact"]
+    assert contact["path"] == "capturing" and check["ok"] is False and check["depth_limit"] == 1e-3
+    assert check["deepest"] == contact["deepest"] > 2e-3 and check["steps_too_deep"] == contact["steps_too_deep"] > 0
+    first = min(contact["deepest_pair"])  # the boxes are declared in name order, all on line 11
+    assert f"{scene}:11:9: error: bodies interpenetrated by more than 1 mm in {check['steps_too_deep']} steps; " \
+           f"deepest {contact['deepest'] * 1e3:.3g} mm" in err and f"`{first}`" in err
+    assert "hint: a smaller step, or thicker bodies, keeps them apart" in err
+    assert (tmp_path / "o" / "trajectory.npz").exists() and (tmp_path / "o" / "events.json").exists()
+
+
+def test_a_capturing_run_within_the_depth_limit_is_ok(tmp_path, capsys):
+    """The same boxes without the slab: within the limit, checks.contact ok and exit 0."""
+    scene = scene_file(tmp_path, CRUSH.replace("  body slab box", "  # body slab box"), "boxes.isaac")
+    code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--no-viewer")
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert report["contact"]["path"] == "capturing"  # (eight boxes landing on one another)
+    assert report["checks"]["contact"] == {"depth_limit": 1e-3, "deepest": report["contact"]["deepest"],
+                                           "steps_too_deep": 0, "ok": True}
+    assert report["contact"]["deepest"] < 1e-3 and code == 0 and "error" not in err
+
+
 def test_constraints_that_part_during_the_run_exit_3(tmp_path, capsys):
     # the second nail's target leaves the first's at 5 m/s for 0.1 s: both hold at the start, 0.5 m apart later
     moving = "  constraint other nail(bob @ (-1, 0, 0), (0, min(t, 0.1 s) * 5 m/s, 0))"
