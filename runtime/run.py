@@ -267,13 +267,27 @@ def _broken_contact(where: str, report: dict, scene: ir.Scene) -> bool:
     check, contact = report["checks"].get("contact"), report.get("contact")
     if check is None or check["ok"]:
         return False
-    a, b = contact["deepest_pair"]
-    _say_error(where, f"bodies interpenetrated by more than {contact['depth_limit'] * 1e3:g} mm in "
-                      f"{contact['steps_too_deep']} steps; deepest {contact['deepest'] * 1e3:.3g} mm, `{a}` and `{b}` "
-                      f"at t = {contact['deepest_time']:.6g} s", _pair_source(scene, a, b),
-               "a smaller step, or thicker bodies, keeps them apart; the trajectory is written, and report.json "
-               "holds the deepest pair (contact.deepest_pair)")
+    _say_error(where, too_deep(contact), _pair_source(scene, *contact["deepest_pair"]), TOO_DEEP_HINT)
     return True
+
+
+TOO_DEEP_HINT = ("a smaller step, or thicker bodies, keeps them apart; the trajectory is written, and report.json "
+                 "holds the deepest pair (contact.deepest_pair)")
+
+
+def too_deep(contact: dict) -> str:
+    """What a run on the capturing path that went deeper than its depth limit says (report.json `contact`)."""
+    a, b = contact["deepest_pair"]
+    return (f"bodies interpenetrated by more than {contact['depth_limit'] * 1e3:g} mm in {contact['steps_too_deep']} "
+            f"steps; deepest {contact['deepest'] * 1e3:.3g} mm, `{a}` and `{b}` at t = {contact['deepest_time']:.6g} s")
+
+
+def too_deep_warning(report: dict, scene: ir.Scene) -> list:
+    """[the warning of a run that broke the depth limit], for a run that does not exit on it (`isaac live`)."""
+    check, contact = report["checks"].get("contact"), report.get("contact")
+    if check is None or check["ok"]:
+        return []
+    return [checks.positioned(too_deep(contact), _pair_source(scene, *contact["deepest_pair"]), TOO_DEEP_HINT)]
 
 
 def _missed_goals(where: str, report: dict) -> bool:

@@ -17,7 +17,8 @@ from __future__ import annotations
 import math
 
 from ..outputs.outputset import OutputSet
-from ..run import RunResult, RunOptions, run_report, set_info, tolerance_checks, write_extras, write_outputs
+from ..run import (RunResult, RunOptions, run_report, set_info, tolerance_checks, too_deep_warning, write_extras,
+                   write_outputs)
 
 
 def realtime_section(result, breath, hub, frame_period: float) -> dict:
@@ -42,6 +43,7 @@ def build_report(result, options, breath, hub, frame_period: float) -> dict:
     report = run_report(result.simulation, recorder, energy0, result.wall, result.error)
     report["warnings"] = list(options.scene_warnings) + report["warnings"]
     report["checks"] = tolerance_checks(report, options.max_constraint_error)
+    report["warnings"] += too_deep_warning(report, result.simulation.plan.scene)
     report["realtime"] = realtime_section(result, breath, hub, frame_period)
     return report
 

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import pytest
 
 from runtime import checks
-from runtime.run import contact_warnings, format_warning
+from runtime.run import contact_check, contact_warnings, format_warning, too_deep_warning
 
 SCENE_TEXT = ("scene s {\n"
               "  body a sphere { radius 5 cm  mass 1 kg }\n"
@@ -53,6 +53,20 @@ def test_contact_warnings_are_at_the_first_body_of_the_pair():
                "energy_created": 0.1, "energy_created_time": 0.25}
     (energy,) = contact_warnings(contact, a_scene())  # (too deep is an error: tests/lang/test_cli_conventions.py)
     assert energy.startswith("s.isaac:2:3: contact impulses created energy in 2 steps")
+
+
+def test_too_deep_is_a_warning_at_the_first_body_of_the_pair_where_the_run_goes_on():
+    """`isaac live` does not exit on a broken tolerance: a run deeper than the limit says so among its warnings."""
+    contact = {"path": "capturing", "steps_too_deep": 3, "deepest_pair": ["b", "ground"], "depth_limit": 1e-3,
+               "deepest": 2e-3, "deepest_time": 0.5, "steps_creating_energy": 0}
+    report = {"contact": contact, "checks": {"contact": contact_check(contact)}}
+    assert report["checks"]["contact"] == {"depth_limit": 1e-3, "deepest": 2e-3, "steps_too_deep": 3, "ok": False}
+    (said,) = too_deep_warning(report, a_scene())
+    assert said.startswith("s.isaac:3:3: bodies interpenetrated by more than 1 mm in 3 steps; deepest 2 mm, `b` and "
+                           "`ground` at t = 0.5 s\nhint: a smaller step")
+    within = {**contact, "steps_too_deep": 0, "deepest": 5e-4}
+    assert too_deep_warning({"contact": within, "checks": {"contact": contact_check(within)}}, a_scene()) == []
+    assert contact_check({"path": "exact"}) is None and contact_warnings(within, a_scene()) == []
 
 
 def test_a_positioned_warning_prints_with_its_line_and_caret(tmp_path):
