@@ -1,0 +1,61 @@
+"""A landing without restitution on the capturing path: 30 spheres of 0.1 kg and clay (e = 0), apart from one
+another, dropped from 10 to 39 cm onto a floor. The exact answer for each: it lands once, at t = sqrt(2 d / g) after
+a fall of d, with the impulse m sqrt(2 g d), and rests on the floor from then on.
+
+Known defect (found 2026-12-06, not mended): the impact is solved while the sphere is still up to |u| h above the
+floor (the speculative contact's gap), and restitution 0 stops it there: at 2.3 m/s and 1 ms it stops 0.99 mm up,
+falls again for 14 ms, and lands again (2 or 3 impact events per landing in the dynamics plan, 1 or 2 in the
+procedural). The first event is right (impulse within 0.4 %, time within 0.5 ms)."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from isaac.api import Simulation
+
+PLANS = {"dynamics": "solver dynamics { integrator rk4  step 1 ms }",
+         "procedural": "solver procedural { step 10 ms  substeps 10 }"}
+COUNT, RADIUS, MASS, G = 30, 0.02, 0.1, 9.81
+
+
+def heights() -> list:
+    return [0.10 + 0.01 * i for i in range(COUNT)]
+
+
+def landing_scene(plan: str) -> str:
+    bodies = "\n".join(f"  body s{i} sphere {{ radius 2 cm  mass 0.1 kg  material clay  at ({0.1 * i}, {h}, 0) m }}"
+                       for i, h in enumerate(heights()))
+    return (f"scene land {{\n  time 0 s .. 0.6 s\n  gravity (0, -9.81, 0) m/s2\n  {PLANS[plan]}\n"
+            "  material clay { density 1000 kg/m3  friction 0.5  restitution 0 }\n"
+            f"  body floor plane {{ material clay }}\n{bodies}\n}}\n")
+
+
+def landings(plan: str) -> tuple:
+    sim = Simulation.from_text(landing_scene(plan))
+    sim.advance_to(0.6)
+    by_body = {}
+    for event in sim.events:
+        if event["kind"] == "impact":
+            (sphere,) = [b for b in event["bodies"] if b != "floor"]
+            by_body.setdefault(sphere, []).append(event)
+    return sim, by_body
+
+
+@pytest.mark.parametrize("plan", PLANS)
+def test_the_first_landing_is_the_exact_one(plan):
+    sim, by_body = landings(plan)
+    assert sim.contact_report()["path"] == "capturing"
+    for i, h in enumerate(heights()):
+        fall = h - RADIUS
+        first = by_body[f"s{i}"][0]
+        assert first["time"] == pytest.approx(math.sqrt(2 * fall / G), abs=1e-3)
+        assert first["impulse"] == pytest.approx(MASS * math.sqrt(2 * G * fall), rel=5e-3)
+
+
+@pytest.mark.xfail(strict=True, reason="the capturing path stops a landing at its speculative gap (up to |u| h above "
+                                       "the floor) and lands it again: 2-3 impacts per landing (module docstring)")
+@pytest.mark.parametrize("plan", PLANS)
+def test_each_sphere_lands_once(plan):
+    _, by_body = landings(plan)
+    assert [len(by_body.get(f"s{i}", [])) for i in range(COUNT)] == [1] * COUNT
