@@ -264,11 +264,17 @@ def _broken_tolerance(where: str, report: dict) -> bool:
 def _broken_contact(where: str, report: dict, scene: ir.Scene) -> bool:
     """Say so on stderr, at the first body of the deepest pair, when a contact went deeper than the depth limit
     (report.json checks.contact)."""
-    check, contact = report["checks"].get("contact"), report.get("contact")
-    if check is None or check["ok"]:
+    contact = _broken_depth(report)
+    if contact is None:
         return False
     _say_error(where, too_deep(contact), _pair_source(scene, *contact["deepest_pair"]), TOO_DEEP_HINT)
     return True
+
+
+def _broken_depth(report: dict) -> dict | None:
+    """report.json's `contact` when its check (checks.contact) failed, else None."""
+    check = report["checks"].get("contact")
+    return report["contact"] if check is not None and not check["ok"] else None
 
 
 TOO_DEEP_HINT = ("a smaller step, or thicker bodies, keeps them apart; the trajectory is written, and report.json "
@@ -284,8 +290,8 @@ def too_deep(contact: dict) -> str:
 
 def too_deep_warning(report: dict, scene: ir.Scene) -> list:
     """[the warning of a run that broke the depth limit], for a run that does not exit on it (`isaac live`)."""
-    check, contact = report["checks"].get("contact"), report.get("contact")
-    if check is None or check["ok"]:
+    contact = _broken_depth(report)
+    if contact is None:
         return []
     return [checks.positioned(too_deep(contact), _pair_source(scene, *contact["deepest_pair"]), TOO_DEEP_HINT)]
 

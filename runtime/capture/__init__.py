@@ -238,10 +238,10 @@ class CaptureStepper:
 
         self.compiled, self.stage = compiled, stage
         g = float(np.linalg.norm(plan.gravity)) if getattr(plan, "gravity", None) is not None else 9.81
-        self.resting = max(RESTING_SPEED, RESTING_STEPS * g * plan.step, BOUNCE_SPEED)
+        exact = max(RESTING_SPEED, RESTING_STEPS * g * plan.step)  # (the exact path's resting speed)
+        self.resting = max(exact, BOUNCE_SPEED)
         # where no pair can bounce (every restitution 0: the clock), a contact that lands faster than the exact
         # path's resting speed is an impact event, its impulse the solve's (loop._touchdowns: a tick lands at 7 cm/s)
-        exact = max(RESTING_SPEED, RESTING_STEPS * g * plan.step)
         self.touch = math.inf if can_bounce(plan.collisions) else exact
         self.energy_tol = 1e-6 * max(energy_scale(plan), 1e-12)
         # the procedural plan's substeps are the capturing loop's steps (a position-level plan steps coarsely)

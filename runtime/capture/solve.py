@@ -19,10 +19,11 @@ simultaneous solve would send the row off together). Each such impulse keeps or 
 
 Each row is prepared once per step (`prepare`), as a sequential-impulse solver keeps it: its Jacobian
 (d, r_a x d, r_b x d) and what a unit impulse along it does to each body (d / m, I^-1 (r x d); zero for a body
-impulses do not move; 1/m kept once per contact), so a sweep's update costs a few dot products. One Gauss-Seidel update of row d:
-lam' = max(0, lam + m_d (target - u_d)) for the normal, the tangents' pair projected onto the disc, and the
-change applied to both bodies at once, so momentum is kept exactly by every update. Interpenetration is removed by a separate pass on pseudo-velocities (split impulses): a contact deeper
-than SLOP is pushed apart at BETA (depth - SLOP) / h, which moves positions only and never adds kinetic energy.
+impulses do not move; 1/m kept once per contact), so a sweep's update costs a few dot products. One Gauss-Seidel
+update of row d: lam' = max(0, lam + m_d (target - u_d)) for the normal, the tangents' pair projected onto the
+disc, and the change applied to both bodies at once, so momentum is kept exactly by every update.
+Interpenetration is removed by a separate pass on pseudo-velocities (split impulses): a contact deeper than SLOP
+is pushed apart at BETA (depth - SLOP) / h, which moves positions only and never adds kinetic energy.
 
 Energy: the impulses P change the kinetic energy by dK = (v+ - v-)^T M (v+ + v-) / 2 = sum over rows of
 lam (u- + u+) / 2. With e <= 1 and friction opposing slip a converged solve has dK <= 0: a step whose contacts
