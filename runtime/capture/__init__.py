@@ -143,14 +143,18 @@ class CaptureStage:
 
     def drain(self) -> None:
         """The loop's events into the event log (impacts and pressing pairs, in the order written)."""
-        ev = self.events
+        ev, log = self.events, self.log
         count = int(ev.count[0])
+        elements = self.cp.table.elements
+        compound = elements is not None and bool(np.any(elements.count))
+        append, event, simple = log.events.append, log._event, (None, None)
         # the rows as Python floats at once: read value by value, numpy's scalars cost a heap's 118,000 events 1 s
-        for row in ev.rows[:min(count, len(ev.rows))].tolist():
-            a, b = int(row[2]), int(row[3])
-            kind = "impact" if row[1] == D.IMPACT else "contact"
-            self.log.events.append(self.log._event(row[0], a, b, row[4:7], row[7:10], row[10], row[11], row[12],
-                                                   kind, self._parts(a, b, int(row[13]))))
+        for t, kind, a, b, px, py, pz, nx, ny, nz, impulse, slip, approach, feature in \
+                ev.rows[:min(count, len(ev.rows))].tolist():
+            a, b = int(a), int(b)
+            parts = self._parts(a, b, int(feature)) if compound else simple
+            append(event(t, a, b, (px, py, pz), (nx, ny, nz), impulse, slip, approach,
+                         "impact" if kind == D.IMPACT else "contact", parts))
         if count > len(ev.rows):
             self.events = D.events(2 * count)
         ev.count[0] = 0
