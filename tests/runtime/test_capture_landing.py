@@ -31,9 +31,11 @@ def landing_scene(plan: str) -> str:
             f"  body floor plane {{ material clay }}\n{bodies}\n}}\n")
 
 
-def landings(plan: str) -> tuple:
-    sim = Simulation.from_text(landing_scene(plan))
-    sim.advance_to(0.6)
+def landings(plan: str, restitution: float = 0.0, until: float = 0.6) -> tuple:
+    """(the simulation run until `until`, each sphere's impact events in order)."""
+    text = landing_scene(plan).replace("restitution 0 }", f"restitution {restitution} }}").replace("0.6 s", f"{until} s")
+    sim = Simulation.from_text(text)
+    sim.advance_to(until)
     by_body = {}
     for event in sim.events:
         if event["kind"] == "impact":
@@ -70,14 +72,7 @@ def test_bounces_keep_their_restitution(plan):
     speculative gap (module docstring) starts its flight up to |u| h too high. Measured, both plans: the third
     landing 4.1 ms from its exact time (bound 7.3 ms), its impulse 3.7 % off (bound 4.8 % for the fastest)."""
     e, h = 0.7, 1e-3
-    text = landing_scene(plan).replace("restitution 0 }", f"restitution {e} }}").replace("0.6 s", "0.9 s")
-    sim = Simulation.from_text(text)
-    sim.advance_to(0.9)
-    by_body = {}
-    for event in sim.events:
-        if event["kind"] == "impact":
-            (sphere,) = [b for b in event["bodies"] if b != "floor"]
-            by_body.setdefault(sphere, []).append(event)
+    _, by_body = landings(plan, restitution=e, until=0.9)
     for i, height in enumerate(heights()):
         v1 = math.sqrt(2 * G * (height - RADIUS))
         # the landings before 0.9 s, the first three (later ones come at speeds near the resting speed)
