@@ -108,6 +108,8 @@ class CaptureStage:
         self.held = np.zeros((n + 1, 13))  # (the state at a step's start, while the loop takes it in parts)
         self.materials = D.Materials(*_materials(cp, n))
         self.parts, self.poses = _compounds(cp, n)
+        # (whether an event may name parts: `drain` looks them up only then)
+        self.compound = cp.table.elements is not None and bool(np.any(cp.table.elements.count))
         self.switched_at = sim.state.t
 
     def start(self) -> None:
@@ -145,14 +147,12 @@ class CaptureStage:
         """The loop's events into the event log (impacts and pressing pairs, in the order written)."""
         ev, log = self.events, self.log
         count = int(ev.count[0])
-        elements = self.cp.table.elements
-        compound = elements is not None and bool(np.any(elements.count))
         append, event, simple = log.events.append, log._event, (None, None)
         # the rows as Python floats at once: read value by value, numpy's scalars cost a heap's 118,000 events 1 s
         for t, kind, a, b, px, py, pz, nx, ny, nz, impulse, slip, approach, feature in \
                 ev.rows[:min(count, len(ev.rows))].tolist():
             a, b = int(a), int(b)
-            parts = self._parts(a, b, int(feature)) if compound else simple
+            parts = self._parts(a, b, int(feature)) if self.compound else simple
             append(event(t, a, b, (px, py, pz), (nx, ny, nz), impulse, slip, approach,
                          "impact" if kind == D.IMPACT else "contact", parts))
         if count > len(ev.rows):
