@@ -19,8 +19,10 @@ a's, faces numbered 2 axis + (0 outward along +axis, 1 along -axis)); an edge co
 """
 from __future__ import annotations
 
+import math
+
 from ..core.jit import kernel
-from ..core.vec import add3, cross3, dot3, rotate, row3, scale3, sub3
+from ..core.vec import add3, cross3, dot3, rotate, rotate_t, row3, scale3, sub3
 from .common import clamp, col3, emit, plane_of, point_box, segment, sign, unit3
 
 EDGE_PREFERENCE = 1e-3
@@ -86,23 +88,38 @@ def capsule_box(shapes, a, b, y, R, sink):
 @kernel
 def nearest_along(s0, s1, shapes, b, y, R):
     """argmin over t in [0, 1] of the signed distance of s0 + t (s1 - s0) to box b, convex along the segment
-    (the box is convex): golden-section search, the interval shrinks 0.618x a step (60 steps: 3e-13)."""
+    (the box is convex): golden-section search, the interval shrinks 0.618x a step (40 steps: 4.5e-9 of the
+    segment, 0.5 nm of a 10 cm capsule's, as the Python phase's). The search runs in the box's frame
+    (`box_distance`): a heap's capsule-box pairs took 2.3 us each when every look turned the point into the box's
+    frame and the nearest point back out (0.7 of its narrow phase; now 0.6 us)."""
     g = 0.6180339887498949
-    d = sub3(s1, s0)
+    x = row3(y, b, 0)
+    start, d = rotate_t(R, b, sub3(s0, x)), rotate_t(R, b, sub3(s1, s0))
+    half = row3(shapes.half, b, 0)
     lo, hi = 0.0, 1.0
     c, e = hi - g, g
-    fc = point_box(add3(s0, scale3(c, d)), shapes, b, y, R)[0]
-    fe = point_box(add3(s0, scale3(e, d)), shapes, b, y, R)[0]
-    for _ in range(60):
+    fc = box_distance(add3(start, scale3(c, d)), half)
+    fe = box_distance(add3(start, scale3(e, d)), half)
+    for _ in range(40):
         if fc < fe:
             hi, e, fe = e, c, fc
             c = hi - g * (hi - lo)
-            fc = point_box(add3(s0, scale3(c, d)), shapes, b, y, R)[0]
+            fc = box_distance(add3(start, scale3(c, d)), half)
         else:
             lo, c, fc = c, e, fe
             e = lo + g * (hi - lo)
-            fe = point_box(add3(s0, scale3(e, d)), shapes, b, y, R)[0]
+            fe = box_distance(add3(start, scale3(e, d)), half)
     return 0.5 * (lo + hi)
+
+
+@kernel
+def box_distance(p, half):
+    """The signed distance of p (the box's frame) to the box of half-extents `half`: with q_k = |p_k| - half_k,
+    |max(q, 0)| outside, max_k q_k inside (out through the face with the least room, as point_box)."""
+    qx, qy, qz = abs(p[0]) - half[0], abs(p[1]) - half[1], abs(p[2]) - half[2]
+    # |max(q, 0)| + min(max_k q_k, 0)
+    outside = math.sqrt(max(qx, 0.0) ** 2 + max(qy, 0.0) ** 2 + max(qz, 0.0) ** 2)
+    return outside + min(max(qx, qy, qz), 0.0)
 
 
 # ---- box-box ---------------------------------------------------------------------------------------------------

@@ -96,8 +96,8 @@ def placed(table, x, R, target):
 
 PAIRS = [(SPHERE, SPHERE), (SPHERE, PLANE), (BOX, PLANE), (BOX, BOX), (SPHERE, BOX), (CAPSULE, PLANE),
          (SPHERE, CAPSULE), (CAPSULE, CAPSULE), (CAPSULE, BOX), (CYLINDER, PLANE), (SPHERE, CYLINDER)]
-# capsule-box: the Python phase finds the axis point nearest the box by 40 golden steps (0.618^40 = 4e-9 of the
-# axis), the compiled one by 60
+# capsule-box: both phases find the axis point nearest the box by 40 golden steps (0.618^40 = 4e-9 of the axis),
+# the Python one in world coordinates, the compiled one in the box's frame
 TOLERANCE = {(CAPSULE, BOX): 1e-8}
 
 
