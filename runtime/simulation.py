@@ -72,7 +72,10 @@ class Simulation:
         self.state = State.initial(plan)
         self.events: list = []
         self.compile_seconds = 0.0  # spent compiling the core (a first run on a machine), apart from the run
-        self._compile_notice = CompileNotice.begin(measure, *self._stepper_class(plan).entries)
+        # the notice names the entries the run will call: a heap's starts on the capturing path and never calls the
+        # exact stepper's (which, never compiled, made every run of a heap announce a compile it did not do)
+        exact = () if self._starts_capturing(plan) else self._stepper_class(plan).entries
+        self._compile_notice = CompileNotice.begin(measure, *exact)
         self.compiled = CompiledPlan(plan)
         self.stepper = self._stepper_class(plan)(self.compiled, plan)
         switches = list(plan.constraints.switch_times()) if plan.constraints else []
@@ -478,7 +481,7 @@ class Simulation:
         plan = self.plan
         self.capture_refused = capture.eligible(plan)
         self._looks = [] if self.capture_refused is None else None  # the steps at which the exact path looked
-        if self.capture_refused is None and capture.crowded(plan):
+        if self._starts_capturing(plan):
             n = int(np.count_nonzero(plan.dynamic[plan.collisions.collidable]))
             self.switch_to_capture(f"a heap: {n} moving bodies collide")
             return
@@ -490,6 +493,13 @@ class Simulation:
         self.collider.jointed_strike = plan.solver == "procedural" and self.capture_refused is None
         self.active_rows()
         self.collider.start()
+
+    @staticmethod
+    def _starts_capturing(plan) -> bool:
+        """Whether the run starts on the capturing path: a heap (enough moving bodies collide) that may take it."""
+        from . import capture
+
+        return plan.collisions is not None and capture.eligible(plan) is None and capture.crowded(plan)
 
     def _count_look(self) -> None:
         """A look of the exact path: LOOKS of them within STEPS steps ask for the capturing path."""

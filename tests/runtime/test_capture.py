@@ -145,6 +145,28 @@ def test_the_report_says_which_path_and_why():
     assert sim.contact_report()["why"] == "a heap: 30 moving bodies collide"
 
 
+
+@pytest.mark.parametrize("plan", PLANS)
+def test_the_compile_notice_names_only_the_entries_the_run_calls(plan, monkeypatch):
+    """A heap starts on the capturing path: the notice (shown when an entry is not compiled yet) asks about the
+    capturing loop, never about the exact stepper it does not call (which, never compiled on a machine that runs
+    only heaps, announced a compile at every run); another scene asks about its exact stepper."""
+    from isaac_runtime.capture.loop import run as capturing
+    from isaac_runtime.core.entries import measure
+    from isaac_runtime.core.jit import CompileNotice
+    from isaac_runtime.simulation import Simulation as Sim
+
+    asked = []
+    monkeypatch.setattr(CompileNotice, "begin", classmethod(lambda cls, *d: asked.extend(d) or cls(0.0)))
+    sim = Simulation.from_text(heap(30, "sphere", plan))
+    exact = set(Sim._stepper_class(sim.plan).entries) - {measure}  # (measure: every run's, the procedural's too)
+    assert capturing in asked and not exact & set(asked)
+    asked.clear()
+    boxes = "\n".join(f"  body b{i} box {{ {BOX}  at ({0.02 * i}, {0.1 + 0.2 * i}, 0) m }}" for i in range(3))
+    sim = Simulation.from_text(scene("  body floor plane { material m }\n" + boxes, plan))
+    assert set(Sim._stepper_class(sim.plan).entries) <= set(asked) and capturing not in asked
+
+
 def chain(links: int, plan: str = "dynamics") -> str:
     capsules = "\n".join(f"  body c{i} capsule {{ radius 2 cm  length 10 cm  material m  at ({0.14 * i}, "
                          f"{0.5 + 0.02 * i}, 0) m  orient (0, 90 deg, 0) }}" for i in range(links))
