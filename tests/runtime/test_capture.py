@@ -145,7 +145,6 @@ def test_the_report_says_which_path_and_why():
     assert sim.contact_report()["why"] == "a heap: 30 moving bodies collide"
 
 
-
 @pytest.mark.parametrize("plan", PLANS)
 def test_the_compile_notice_names_only_the_entries_the_run_calls(plan, monkeypatch):
     """A heap starts on the capturing path: the notice (shown when an entry is not compiled yet) asks about the
