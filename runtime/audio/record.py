@@ -2,7 +2,8 @@
 
 For every step (handed on after each kernel call: Simulation.add_tracer) it stores, at the step's end time:
 - hits: every new collision event of kind "impact", with its sample round((t - start) fs), the contact point
-  in each body's frame (for the mode shapes) and the contact duration (excitation.py);
+  in each body's frame at the end of the step it happened in (for the mode shapes) and the contact duration
+  (excitation.py);
 - for each body pair a sound listens to (contact sounds, scrape, roll), at the time of each of the pair's
   "contact" events (one per output frame while they touch, runtime/collide/events.py): the sliding speed
   (the event's tangential speed), the normal force (its impulse over the frame, / the frame period), the
@@ -161,38 +162,55 @@ class Recorder:
             if self.record.wind else None
         self.frames = np.asarray(sim.plan.frame_times, float)
         self.next_frame = int(np.searchsorted(self.frames, sim.state.t, side="right"))
-        # the bodies whose motion the steps must hand on: the placed ones, then those the wind is sampled at
+        # the bodies whose motion the steps must hand on (each once): the placed ones first, those the wind is
+        # sampled at, and those an event's point is read in (`_posed`)
         moving = self.wind_probes.moving_body if self.wind_probes is not None else np.zeros(0, np.int64)
-        self.bodies = np.concatenate([self.placed_rows, moving]).astype(np.int64)
+        rows = list(dict.fromkeys([*self.placed_rows.tolist(), *moving.tolist(), *self._posed(plan)]))
+        self.bodies = np.array(rows, np.int64)
+        self.slot = {row: k for k, row in enumerate(rows)}  # a body's row of the state -> its column of a trace
+        self.moving_slots = np.array([self.slot[b] for b in moving.tolist()], np.int64)
         self._step_state = _StepState(sim.state.x.copy(), sim.state.v.copy())  # wind speeds' state of one step
+        self._last = (sim.state.t, sim.state.y[self.bodies].copy())  # the last step handed on: its time and rows
         self.seen = 0
         self._sample_start(sim)
         sim.add_tracer(self)
 
     def take(self, sim, times: np.ndarray, trace: np.ndarray) -> None:
-        """The steps of one kernel call (Simulation.add_tracer): their end times (k,) and trace (k, b, 6), the
-        position and velocity of self.bodies after each; then the events they brought, read at the live state
-        (the call's end: an impact ends a call, and a call ends at every frame)."""
+        """The steps of one kernel call (Simulation.add_tracer): their end times (k,) and trace (k, b, 13), the
+        state rows of self.bodies after each; then the events they brought, each read with the state of the step
+        it happened in."""
         first = self.seen
         new = sim.events[first:] if len(sim.events) > first else NO_EVENTS
         self.seen = first + len(new)
         self._sample_steps(times, trace)
-        self._events(sim.state, new, first)
+        steps = _Steps(times, trace, self._last)
+        if len(times):
+            self._last = (float(times[-1]), trace[-1].copy())
+        self._events(steps, new, first)
 
     def _sample_start(self, sim) -> None:
         """The table's first row: the state the run starts from."""
         s = sim.state
-        trace = np.concatenate([s.x[self.bodies], s.v[self.bodies]], axis=1)[None]
-        self._sample_steps(np.array([s.t]), trace)
+        self._sample_steps(np.array([s.t]), s.y[self.bodies][None])
 
-    def _events(self, state, new_events: list, first: int) -> None:
+    def _posed(self, plan) -> list:
+        """The rows of the bodies an event's point is read in: those with modes (a hit's point in their frame
+        sets how each mode is struck) and both bodies of each pair a contact sound listens to (its speeds too;
+        every body when one listens to any contact)."""
+        if any(not pair for pair in plan.needs.pairs):
+            return sorted(self.index.values())
+        names = {body for sp in plan.sounds for body in sp.modes} | {body for pair in plan.needs.pairs for body in pair}
+        return sorted(self.index[name] for name in names if name in self.index)
+
+    def _events(self, steps: "_Steps", new_events: list, first: int) -> None:
         record, plan = self.record, self.plan
         for k, event in enumerate(new_events):
             if event.get("kind", "impact") != "contact":
-                local = self.local_points(state, event.get("point", (0.0, 0.0, 0.0)), event.get("bodies", ()))
+                rows = steps.at(float(event["time"]))
+                local = self.local_points(rows, event.get("point", (0.0, 0.0, 0.0)), event.get("bodies", ()))
                 record.hits.append(make_hit(plan, event, local, first + k))
         if record.contacts:
-            self._contacts(new_events, state)
+            self._contacts(new_events, steps)
 
     def _sample_steps(self, times: np.ndarray, trace: np.ndarray) -> None:
         """The table's rows of these steps: time, placed bodies' positions, wind speeds (a body not in the run
@@ -206,26 +224,27 @@ class Recorder:
             # (steps, placed, 3) -> the table's (placed, steps, 3)
             table.positions[self.placed_columns, k:k + count] = trace[:, :placed, :3].transpose(1, 0, 2)
         if self.wind_probes is not None:
-            step, moving = self._step_state, self.wind_probes.moving_body
+            step, moving, slots = self._step_state, self.wind_probes.moving_body, self.moving_slots
             for i in range(count):
-                step.x[moving], step.v[moving] = trace[i, placed:, :3], trace[i, placed:, 3:]
+                step.x[moving], step.v[moving] = trace[i, slots, :3], trace[i, slots, 7:10]
                 self.air.speeds(self.wind_probes, step, float(times[i]), out=table.wind[:, k + i])
         table.size = k + count
 
-    def local_points(self, state, point, bodies) -> dict:
-        """A world point in the frame of each of the bodies, from the state at the end of the step."""
+    def local_points(self, rows: np.ndarray, point, bodies) -> dict:
+        """A world point in the frame of each of the bodies that is traced, from their state rows (b, 13) at
+        the end of a step."""
         from ..core.rotation import quat_to_matrix
 
         point = np.asarray(point, float)
         out = {}
         for body in bodies:
-            if body in self.index:
-                i = self.index[body]
+            k = self.slot.get(self.index.get(body, -1))
+            if k is not None:
                 # p_local = R^T (p - x)
-                out[body] = quat_to_matrix(state.q[i]).T @ (point - state.x[i])
+                out[body] = quat_to_matrix(rows[k, 3:7]).T @ (point - rows[k, :3])
         return out
 
-    def _contacts(self, events: list, state) -> None:
+    def _contacts(self, events: list, steps: "_Steps") -> None:
         """A sample per contact event of each listened pair; a zero at each frame passed without one."""
         frame_period = (self.frames[1] - self.frames[0]) if len(self.frames) > 1 else 1.0
         touched = {pair: [] for pair in self.record.contacts}
@@ -234,31 +253,37 @@ class Recorder:
                 for pair in touched:
                     if _of_pair(event, pair):
                         touched[pair].append(event)
-        for pair, series in self.record.contacts.items():
-            for event in touched[pair]:
-                # N = J / frame period (the event's impulse is summed over its frame)
-                self._contact_sample(pair, series, event, float(event["time"]),
-                                     float(event.get("impulse", 0.0)) / frame_period, state)
-        while self.next_frame < len(self.frames) and self.frames[self.next_frame] <= state.t + 1e-12:
-            t_frame = float(self.frames[self.next_frame])
-            for pair, series in self.record.contacts.items():
-                times = series["times"]
-                if not times.size or abs(times.view()[-1] - t_frame) > 1e-9:
-                    self._contact_sample(pair, series, None, t_frame, 0.0, state)
+        passed = []  # the frames these steps passed
+        while self.next_frame < len(self.frames) and self.frames[self.next_frame] <= steps.until + 1e-12:
+            passed.append(float(self.frames[self.next_frame]))
             self.next_frame += 1
+        for pair, series in self.record.contacts.items():
+            times = series["times"]
+            last = times.view()[-1] if times.size else math.nan
+            samples = [(float(event["time"]), k, event) for k, event in enumerate(touched[pair])]
+            heard = np.sort([t for t, _, _ in samples])
+            for t_frame in passed:
+                k = int(np.searchsorted(heard, t_frame - 1e-9))
+                if not (k < len(heard) and heard[k] <= t_frame + 1e-9) and not abs(last - t_frame) <= 1e-9:
+                    samples.append((t_frame, len(samples), None))
+            for t, _, event in sorted(samples, key=lambda sample: sample[:2]):
+                # N = J / frame period (the event's impulse is summed over its frame)
+                force = float(event.get("impulse", 0.0)) / frame_period if event is not None else 0.0
+                self._contact_sample(pair, series, event, t, force, steps)
 
-    def _contact_sample(self, pair, series, event, t: float, force: float, state) -> None:
+    def _contact_sample(self, pair, series, event, t: float, force: float, steps: "_Steps") -> None:
         speed = roll = 0.0
         local = {}
         if event is not None:
             speed = abs(float(event.get("tangential_speed", 0.0)))
             normal = np.asarray(event.get("normal", (0.0, 1.0, 0.0)), float)
             bodies = event.get("bodies", pair)
-            rel = sum((sign * state.v[self.index[b]] for sign, b in zip((1.0, -1.0), bodies) if b in self.index),
-                      np.zeros(3))
+            rows = steps.at(t)
+            rel = sum((sign * rows[self.slot[self.index[b]], 7:10] for sign, b in zip((1.0, -1.0), bodies)
+                       if b in self.index), np.zeros(3))
             # |v_rel - n (n . v_rel)|: how fast the contact point travels over the surfaces
             roll = float(np.linalg.norm(rel - normal * np.dot(rel, normal)))
-            local = self.local_points(state, event.get("point", (0.0, 0.0, 0.0)), pair)
+            local = self.local_points(rows, event.get("point", (0.0, 0.0, 0.0)), pair)
         series["times"].append(t)
         series["speed"].append(speed)
         series["force"].append(force)
@@ -269,6 +294,20 @@ class Recorder:
 
 
 NO_EVENTS: list = []  # the new events of a step without any (never appended to)
+
+
+class _Steps:
+    """The traced state rows at the steps of one kernel call and at the step handed on before them."""
+
+    def __init__(self, times: np.ndarray, trace: np.ndarray, last: tuple):
+        self.times = np.concatenate([[last[0]], times])
+        self.rows = np.concatenate([last[1][None], trace]) if len(times) else last[1][None]
+        self.until = float(self.times[-1])
+
+    def at(self, t: float) -> np.ndarray:
+        """(b, 13) at the end of the step that time t falls in (the first ending at or after it)."""
+        k = int(np.searchsorted(self.times, t - 1e-9))
+        return self.rows[min(k, len(self.rows) - 1)]
 
 
 @dataclass

@@ -19,8 +19,9 @@ DONE, RUNAWAY_BODY, RUNAWAY_ROW, CONTACT = 0, 1, 2, 3
 # y (F, n+1, 13) the states, energy (F,), error (F,) the largest |C| of the active position rows, worst (F,) its row;
 # contact (F, K, 8): for every contact instance k active at the frame, its normal impulse since the last frame,
 # its slip speed, the contact point (3) and normal (3) (core/contact.py `contact_state`); 0 elsewhere;
-# traced (k,) the bodies whose position and velocity every step of the call leaves in trace (S, k, 6) as x, v: what a
-# stage reading the motion step by step needs (Simulation.tracers, the audio stage); k = 0 or S = 0 traces nothing
+# traced (k,) the bodies whose state rows (x, q, v, w) every step of the call leaves in trace (S, k, 13): what a stage
+# reading the motion step by step needs (Simulation.tracers, the audio stage: where a contact point lies in a body
+# at the step of its event); k = 0 or S = 0 traces nothing
 Frames = namedtuple("Frames", "y energy error worst contact traced trace")
 
 
@@ -54,14 +55,13 @@ def record(m, act, s, y, table, j, frames, f):
 
 @inlined
 def trace_step(y, frames, step):
-    """frames.trace[step] <- (x, v) of each traced body after step `step` (counted from 0) of the call."""
+    """frames.trace[step] <- the state row of each traced body after step `step` (counted from 0) of the call."""
     if step >= frames.trace.shape[0]:
         return
     for i in range(len(frames.traced)):
         b = frames.traced[i]
-        for c in range(3):
+        for c in range(13):
             frames.trace[step, i, c] = y[b, c]
-            frames.trace[step, i, 3 + c] = y[b, 7 + c]
 
 
 @inlined

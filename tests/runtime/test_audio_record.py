@@ -71,14 +71,17 @@ def _recorded(make, one_step_per_call: bool):
                                   lambda: Simulation.from_file(SCENES / "scrape.isaac", until=0.6)],
                          ids=["landing", "scrape"])
 def test_a_call_of_many_steps_records_what_calls_of_one_step_do(make):
-    """The kernel hands the recorder the motion of every step of a call (Simulation.add_tracer), one call to
-    each frame: the same table, hits and contact samples as stepping one step per call, in a fraction of the
-    calls (1 ms steps, 100 Hz frames)."""
+    """The kernel hands the recorder the state of every step of a call (Simulation.add_tracer), one call to
+    each frame: the same table, hits (their points in the bodies' frames at the step each happened in) and
+    contact samples as stepping one step per call, in a fraction of the calls (1 ms steps, 100 Hz frames)."""
     many, calls = _recorded(make, False)
     one, one_calls = _recorded(make, True)
     assert len(many.hits) == len(one.hits)
     for a, b in zip(many.hits, one.hits):
         assert (a.sample, a.bodies) == (b.sample, b.bodies) and a.impulse == pytest.approx(b.impulse, rel=1e-9)
+        assert a.local.keys() == b.local.keys()
+        for body in a.local:
+            assert np.allclose(a.local[body], b.local[body], rtol=0, atol=1e-12)
     assert np.array_equal(many.times.view(), one.times.view())
     for key in many.positions:
         assert np.allclose(many.positions[key].view(), one.positions[key].view(), rtol=0, atol=1e-12)
