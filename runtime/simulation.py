@@ -7,9 +7,10 @@
 The steps themselves run in compiled kernels (runtime/core, runtime/dynamics, runtime/procedural), many per call;
 Python runs only between calls: at constraint switches (a step never crosses one: time is cut into pieces at
 switches and frames, and each piece takes equal steps no longer than the plan's), at recorded frames when a
-caller needs them one by one, at every frame while a tracer reads the motion (the audio stage: the kernel hands it
-the state of its bodies at every step), at the collision stage's looks, and after each step while an observer
-listens.
+caller needs them one by one, at the collision stage's looks, and after each step while an observer listens. A
+tracer (the audio stage) is handed the state of its bodies at every step of a call, after the call. A run steps
+alike, bit for bit, whether a call covers one frame or many (`_steps_of`, `step_times`): a live run calls once a
+frame.
 """
 from __future__ import annotations
 
@@ -34,6 +35,8 @@ from .plan import Plan
 
 # a run that hands its frames to a caller one by one (watch, live) steps at most this many steps per kernel call
 ON_FRAME_STEPS = 2000
+# a call traced for a tracer holds at most this many numbers of the motion (8 bytes each: 16 MB)
+TRACE_CELLS = 1 << 21
 
 
 @dataclass
@@ -56,6 +59,26 @@ class State:
         y = D.initial_state(plan)
         n = plan.n
         return cls(plan.start, y[:n, D.X], y[:n, D.Q], y[:n, D.V], y[:n, D.W], y=y)
+
+
+def _steps_of(span: float, h: float) -> tuple:
+    """(count, length) of the steps of an interval of `span`: the fewest of equal length no longer than h, and h
+    itself when their length is h to rounding (frames a whole number of steps apart then step alike, whether a
+    kernel call covers one frame or many)."""
+    count = max(1, math.ceil(span / h - 1e-9))
+    length = span / count
+    return count, (h if abs(length - h) <= 1e-12 * h else length)
+
+
+def step_times(t0: float, ends: list, count: int, h: float) -> np.ndarray:
+    """The times of the step boundaries of intervals of `count` steps of h from t0 to each of `ends` in turn:
+    each interval's steps counted from its start, its last ending at its end. A kernel call covering several
+    intervals (frames) steps at the times that a call per interval does, bit for bit."""
+    starts = np.array([t0] + list(ends[:-1]))
+    times = np.empty(count * len(ends) + 1)
+    times[:-1] = (starts[:, None] + h * np.arange(count)).ravel()
+    times[-1] = ends[-1]
+    return times
 
 
 class _FrameSink:
@@ -99,7 +122,7 @@ class Simulation:
         # observers called after every step (the kernel then takes one step per call: a probe, a test's oracle)
         self.observers: list = []
         # tracers (add_tracer): the audio stage's recorder, handed the state of its bodies at every step after each
-        # kernel call, which ends at every frame while one listens
+        # kernel call
         self.tracers: list = []
         self._traced = np.zeros(0, np.int64)  # their bodies, one after another (Frames.traced)
         self._follow_paths()
@@ -197,11 +220,18 @@ class Simulation:
         springs.body[row] = (self.body(name), -1)
         springs.point[row, 0], springs.point[row, 1] = point, target
         springs.stiffness[row], springs.rest[row], springs.damping[row] = stiffness, 0.0, damping
+        self._model_changed()
 
     def release_pull(self) -> None:
         springs, row = self.compiled.model.springs, self._scene_springs()
         if len(springs.stiffness) > row:
             self.compiled.model = self.compiled.model._replace(springs=M.Springs(*(a[:row] for a in springs)))
+            self._model_changed()
+
+    def _model_changed(self) -> None:
+        """The model was changed between kernel calls (a pull, a body onto or off its path): the next call
+        evaluates its first slope afresh rather than keep the last call's (dynamics/integrate.py run)."""
+        self.compiled.scratch.counters[D.COUNTER_SLOPE] = 0
 
     def _scene_springs(self) -> int:
         springs = self.plan.forces.springs
@@ -224,9 +254,7 @@ class Simulation:
         """A stage that reads the state of tracer.bodies ((b,) int) at every step: tracer.take(simulation,
         times (k,), trace (k, b, 13) their state rows x, q, v, w) is called after each kernel call with its steps
         (their end times), after the collision stage and the frames of those steps; an event of those steps is
-        read with the state of the step it happened in. A call then ends at every frame: a live run calls once
-        a frame and must step as `isaac run` does, bit for bit, and calls of other lengths do not (the windmill
-        at 2 s: 5e-14 apart with calls of 1 to 50 steps; the dominoes at 0.6 s: 3e-5)."""
+        read with the state of the step it happened in (a call may cover many frames)."""
         self.tracers.append(tracer)
         self._traced = np.concatenate([np.asarray(t.bodies, np.int64) for t in self.tracers])
 
@@ -298,45 +326,45 @@ class Simulation:
             per_call = min(per_call, ON_FRAME_STEPS)  # the caller hears of the frames (and can stop) every so often
         if self.observers:
             per_call = 1  # stages still in Python need the state after every step
-        by_frame = bool(self.tracers)  # (add_tracer) a call to each frame
+        if self.tracers:
+            per_call = min(per_call, max(1, TRACE_CELLS // max(len(self._traced) * D.PACKED, 1)))
         while i < len(cuts):
-            span = cuts[i][0] - s.t
-            count = max(1, math.ceil(span / h - 1e-9))
-            h_piece = span / count
+            count, h_piece = _steps_of(cuts[i][0] - s.t, h)
             intervals = 1
-            while (i + intervals < len(cuts) and not by_frame and count * intervals < per_call
-                   and abs((cuts[i + intervals][0] - cuts[i + intervals - 1][0]) / count - h_piece)
-                   <= 1e-12 * h_piece):
+            while (i + intervals < len(cuts) and count * intervals < per_call
+                   and _steps_of(cuts[i + intervals][0] - cuts[i + intervals - 1][0], h) == (count, h_piece)):
                 intervals += 1
             piece = cuts[i:i + intervals]
-            self._run_steps(h_piece, count, [frame for _, frame in piece], sink, per_call)
+            self._run_steps(h_piece, count, piece, sink, per_call)
             s.t = piece[-1][0]
             i += intervals
 
-    def _run_steps(self, h: float, count: int, is_frame: list, sink, per_call: int) -> None:
-        """count steps of h per interval, over the intervals whose ends are frames or not (is_frame), recording
-        the frames among them (in the kernel; or here, after the stages that still run in Python). The Active
-        rows are the epoch's as the collision stage last left them (self._act)."""
+    def _run_steps(self, h: float, count: int, ends: list, sink, per_call: int) -> None:
+        """count steps of h per interval, over the intervals ending at ends [(time, is a frame)], recording the
+        frames among them (in the kernel; or here, after the stages that still run in Python). The Active rows
+        are the epoch's as the collision stage last left them (self._act)."""
         s = self.state
+        is_frame = [frame for _, frame in ends]
         total = count * len(is_frame)
+        clock = step_times(s.t, [t for t, _ in ends], count, h)
         frame_ends = {(k + 1) * count for k in range(len(is_frame)) if is_frame[k]}
         if self._frame_now:  # the frame at the start of these steps (see _advance)
             frame_ends.add(0)
             self._frame_now = False
         in_python = self._python_stages()
         done = 0
-        t0 = s.t
         while done < total:
             steps = min(per_call, total - done)
             frame_step = np.array(sorted(end - done for end in frame_ends if (done < end or end == 0)
                                          and end <= done + steps and not in_python), np.int64)
             frames = self._frame_buffer(len(frame_step), steps)
-            taken = self.stepper.run(self._act, s.y, t0 + done * h, h, steps, frame_step, frames, self._status)
+            taken = self.stepper.run(self._act, s.y, clock[done:done + steps + 1], h, steps, frame_step, frames,
+                                     self._status)
             self._end_compile_notice()
             first = done
             done += taken
             s.steps += taken
-            s.t = t0 + done * h
+            s.t = float(clock[done])
             stopped = self._status[0] == CONTACT
             # a stop for the collision stage, or a body that ran away, ends the call before the frames of that step
             # are recorded (core/record.py after_step): only the frames the kernel recorded go on (a frame buffer is
@@ -349,14 +377,14 @@ class Simulation:
                 if getattr(self.collider, "wants_capture", None) is None:
                     self._count_look()
                 if getattr(self.collider, "wants_capture", None):
-                    self.switch_to_capture(self.collider.wants_capture, t0 + done * h)
+                    self.switch_to_capture(self.collider.wants_capture, float(clock[done]))
                 self.active_rows()
             if in_python:
                 self._after_step(h)
             if (in_python or stopped) and done in frame_ends and sink is not None:
                 self._record_now(sink)
             if self.tracers:
-                self._hand_trace(frames.trace[:taken], t0 + np.arange(first + 1, done + 1) * h, stopped)
+                self._hand_trace(frames.trace[:taken], clock[first + 1:done + 1].copy(), stopped)
 
     def _hand_trace(self, trace: np.ndarray, times: np.ndarray, stopped: bool) -> None:
         """The steps of a kernel call to each tracer (add_tracer); the last one as the collision stage left it
@@ -443,6 +471,7 @@ class Simulation:
             self.plan.dynamic[b] = dynamic[b] and not on[k]
             self.plan.inv_mass[b] = 0.0 if on[k] else inv_mass[b]
             self.plan.inv_inertia_body[b] = 0.0 if on[k] else inv_inertia[b]
+        self._model_changed()
         self._place_kinematic()
 
     @property

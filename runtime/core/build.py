@@ -197,9 +197,16 @@ class CompiledPlan:
         rate = np.einsum("msk,msk->m", s.J[rows], motion) + s.ct[rows]
         return s.C[rows].copy(), rate
 
-    def tabulate(self, t0: float, h: float, steps: int, grid: int) -> np.ndarray:
-        """The time table of `steps` steps of h from t0, `grid` rows per step."""
-        return self.table.evaluate(t0, h / grid, grid * steps + 1)
+    def tabulate(self, t0, h: float, steps: int, grid: int) -> np.ndarray:
+        """The time table of `steps` steps of h, `grid` rows per step. t0: the time of the first step, or the time
+        of every step's start and of the last one's end ((steps + 1,): Simulation's `step_times`, the same
+        whatever steps a call covers): the rows of step i at t_i + g h / grid, the last row at the end."""
+        if np.ndim(t0) == 0:
+            return self.table.evaluate(t0, h / grid, grid * steps + 1)
+        times = np.empty(grid * steps + 1)
+        times[:-1] = (t0[:steps, None] + (h / grid) * np.arange(grid)).ravel()
+        times[-1] = t0[steps]
+        return self.table.at(times)
 
 
 def candidate_pairs(cp, dynamic) -> tuple:

@@ -29,12 +29,13 @@ Block = namedtuple("Block", "K rhs x J D dx")
 # evaluations that the kept factor served; [8] steps taken at rest, the state left as it was (core/rest.py), [9]
 # the steps in a row at rest when the last call ended, in the state `rested` (the state it ended with); the error
 # control of RK4 (dynamics/integrate.py): [10] steps taken again in substeps, [11] the substeps they took, [12] steps
-# whose estimated error stayed above the tolerance (time-varying inputs, or the most substeps not enough)
+# whose estimated error stayed above the tolerance (time-varying inputs, or the most substeps not enough); [13] 1
+# when the last call ended with RK4's slope at its end state in k[END] (a call that goes on from there keeps it)
 COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_TURNED_BACK = 0, 1, 2
 COUNTER_KEPT, COUNTER_KEPT_DROPPED, COUNTER_WAIT, COUNTER_BACKOFF, COUNTER_REUSED = 3, 4, 5, 6, 7
 COUNTER_RESTING, COUNTER_STILL = 8, 9
-COUNTER_REFINED, COUNTER_SUBSTEPS, COUNTER_OVER = 10, 11, 12
-COUNTERS = 13
+COUNTER_REFINED, COUNTER_SUBSTEPS, COUNTER_OVER, COUNTER_SLOPE = 10, 11, 12, 13
+COUNTERS = 14
 # the counts of a whole run, kept when the buffers grow (core/build.py reserve_contacts)
 CUMULATIVE_COUNTERS = (COUNTER_RANK, COUNTER_PROJECTIONS, COUNTER_REUSED, COUNTER_RESTING, COUNTER_REFINED,
                        COUNTER_SUBSTEPS, COUNTER_OVER)

@@ -82,16 +82,22 @@ def inputs_still(table, j, rows):
 
 
 @inlined
-def still_at_start(s, y, carry):
-    """The steps in a row at rest to go on from: the last call's count if `carry` (the same active rows) and y is
-    the state that call ended with, else 0."""
+def resumes(s, y, carry):
+    """Whether a call goes on where the last one ended: `carry` (the same active rows) and y is the state that
+    call ended with."""
     if not carry:
-        return 0
+        return False
     for b in range(len(y)):
         for c in range(13):
             if y[b, c] != s.rested[b, c]:
-                return 0
-    return s.counters[COUNTER_STILL]
+                return False
+    return True
+
+
+@inlined
+def still_at_start(s, y, carry):
+    """The steps in a row at rest to go on from: the last call's count if it `resumes`, else 0."""
+    return s.counters[COUNTER_STILL] if resumes(s, y, carry) else 0
 
 
 @inlined

@@ -62,8 +62,11 @@ class TimeTable:
 
     def evaluate(self, t0: float, spacing: float, rows: int) -> np.ndarray:
         """(rows, width) at the times t0 + i spacing."""
-        table = np.zeros((rows, self.width))
-        times = t0 + spacing * np.arange(rows)
+        return self.at(t0 + spacing * np.arange(rows))
+
+    def at(self, times: np.ndarray) -> np.ndarray:
+        """(rows, width) at the given times (rows,)."""
+        table = np.zeros((len(times), self.width))
         table[:, TIME] = times
         for column, width, produce in self.producers:
             table[:, column:column + width] = produce(times)

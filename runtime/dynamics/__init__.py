@@ -9,6 +9,8 @@ with the held constraints projected back onto their manifold after every step (d
 """
 from __future__ import annotations
 
+import numpy as np
+
 from ..core.build import energy_scale
 from ..core.jit import Bound
 from ..core.rest import REST_STEPS
@@ -27,6 +29,7 @@ class DynamicsStepper:
         self.energy_scale = energy_scale(plan)
         self.entering = None  # the Active rows of an epoch just entered, until its first run
         self.last_rows = None  # the Active rows of the last run (its count of steps at rest goes on with them)
+        self.end_row = None  # the time table's row at the end of the last run
         self._run = Bound(run)
 
     def run(self, act, y, t0: float, h: float, steps: int, frame_step, frames, status) -> int:
@@ -35,8 +38,13 @@ class DynamicsStepper:
         table = c.tabulate(t0, h, steps, GRID)
         entering, self.entering = self.entering is act, None
         carry, self.last_rows = self.last_rows is act, act
-        return self._run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status,
-                         entering, self.rest_after, carry, self.tolerance, self.energy_scale)
+        # the inputs at the start are those the last run ended with (the loop then keeps its last slope, as it does
+        # from one step to the next: a run steps alike whether a call covers one frame or many)
+        same = self.end_row is not None and np.array_equal(table[0], self.end_row)
+        taken = self._run(c.model, act, c.scratch, y, table, self.integrator, h, steps, frame_step, frames, status,
+                          entering, self.rest_after, carry, same, self.tolerance, self.energy_scale)
+        self.end_row = table[GRID * taken].copy()
+        return taken
 
     def enter(self, act, y, t: float) -> None:
         """A new epoch begins at t: its first run starts by putting the held rows on their manifold."""

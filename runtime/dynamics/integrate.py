@@ -40,10 +40,11 @@ import math
 
 from ..core.bodies import copy_state, normalize_quaternions, place_kinematic
 from ..core.contact import add_impulses
-from ..core.data import COUNTER_KEPT, COUNTER_OVER, COUNTER_REFINED, COUNTER_SUBSTEPS, COUNTER_TURNED_BACK
+from ..core.data import (COUNTER_KEPT, COUNTER_OVER, COUNTER_REFINED, COUNTER_SLOPE, COUNTER_STILL,
+                         COUNTER_SUBSTEPS, COUNTER_TURNED_BACK)
 from ..core.jit import entry, inlined, kernel
 from ..core.record import DONE, after_step, record
-from ..core.rest import inputs_still, rests, still_after, still_at_end, still_at_start
+from ..core.rest import inputs_still, rests, resumes, still_after, still_at_end
 from ..core.vec import dot3, rotate, rotate_t
 from .accelerations import accelerations
 from ..core.projection import project, settle_rows
@@ -248,25 +249,34 @@ def refine(m, s, y, table, j, h, tolerance, energy_scale):
 
 @entry
 def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, entering, rest_after, carry,
-        tolerance, energy_scale):
+        same_inputs, tolerance, energy_scale):
     """Advance y by `steps` steps of h (module docstring); `entering` an epoch, first the held rows onto their
     manifold (a row that switched on with its points together but moving apart is held from this instant). A step
     after which the collision stage must look ends the call before its frame is recorded (status CONTACT). After
     `rest_after` steps in a row at rest (core/rest.py; 0: never) the steps leave the state as it is while the
-    inputs stay constant; `carry`: the active rows are those of the last call, whose count of such steps goes on.
+    inputs stay constant; `carry`: the active rows are those of the last call, whose count of such steps and kept
+    factor go on; `same_inputs`: table row 0 is the row the last call ended at (its last slope goes on too).
     `tolerance` > 0: RK4 steps under error control, relative to `energy_scale` (module docstring)."""
     status[0], status[1], status[2], status[3] = DONE, 0, -1, 0
-    s.counters[COUNTER_KEPT] = 0  # (a factor in Lx from an earlier call may be of other rows)
+    if not carry:
+        # a factor in Lx from an earlier call may be of other rows. With the same rows it is kept, as it would be
+        # between two steps of one call (solve_again checks that it serves): a run steps alike whether a call
+        # covers one frame or many (a live run calls once a frame)
+        s.counters[COUNTER_KEPT] = 0
     if entering:
         project(m, act, s, y, table, 0, True, 0.0)
     f = 0
     while f < len(frame_step) and frame_step[f] == 0:
         record(m, act, s, y, table, 0, frames, f)
         f += 1
-    still = still_at_start(s, y, carry and not entering)  # steps in a row, inputs constant, every body at rest
+    resumed = resumes(s, y, carry and not entering)
+    still = s.counters[COUNTER_STILL] if resumed else 0  # steps in a row, inputs constant, every body at rest
     done = steps
     controlled = integrator == RK4 and tolerance > 0.0
-    known = False  # s.k[END] holds the slope at y
+    # s.k[END] holds the slope at y (so it does at the call's start when the last call's last step left it there:
+    # computed again, a sliding contact's friction iterations start from other multipliers, and the run would not
+    # step alike whether a call covers one frame or many)
+    known = resumed and same_inputs and controlled and s.counters[COUNTER_SLOPE] == 1
     for step in range(steps):
         copy_state(y, s.start)
         s.counters[COUNTER_TURNED_BACK] = 0
@@ -291,5 +301,6 @@ def run(m, act, s, y, table, integrator, h, steps, frame_step, frames, status, e
         if taken >= 0:
             done = taken
             break
+    s.counters[COUNTER_SLOPE] = 1 if known else 0
     still_at_end(s, y, still)
     return done

@@ -71,8 +71,8 @@ def _recorded(make, one_step_per_call: bool):
                                   lambda: Simulation.from_file(SCENES / "scrape.isaac", until=0.6)],
                          ids=["landing", "scrape"])
 def test_a_call_of_many_steps_records_what_calls_of_one_step_do(make):
-    """The kernel hands the recorder the state of every step of a call (Simulation.add_tracer), one call to
-    each frame: the same table, hits (their points in the bodies' frames at the step each happened in) and
+    """The kernel hands the recorder the state of every step of a call (Simulation.add_tracer), a call covering
+    many frames: the same table, hits (their points in the bodies' frames at the step each happened in) and
     contact samples as stepping one step per call, in a fraction of the calls (1 ms steps, 100 Hz frames)."""
     many, calls = _recorded(make, False)
     one, one_calls = _recorded(make, True)

@@ -265,6 +265,6 @@ def test_compiled_integrators_match_textbook_ones(name):
                     np.zeros((0, len(c.model.constraints.family), 8)), np.zeros(0, np.int64), np.zeros((0, 0, 6)))
     status = np.zeros(4, np.int64)
     I.run(c.model, act, scratch, got, c.tabulate(t, h, 1, I.GRID), I.INTEGRATORS[name], h, 1, np.zeros(0, np.int64),
-          frames, status, False, 0, False, 0.0, 1.0)  # (no error control: one textbook step)
+          frames, status, False, 0, False, False, 0.0, 1.0)  # (no error control: one textbook step)
     assert status[0] == I.DONE
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
