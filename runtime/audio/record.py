@@ -196,8 +196,8 @@ class Recorder:
     def _posed(self, plan) -> list:
         """The rows of the bodies an event's point is read in: those with modes (a hit's point in their frame
         sets how each mode is struck) and both bodies of each pair a contact sound listens to (its speeds too;
-        every body when one listens to any contact)."""
-        if any(not pair for pair in plan.needs.pairs):
+        every body when one listens to the contacts of any body, or of one body with any other)."""
+        if any(len(pair) < 2 for pair in plan.needs.pairs):
             return sorted(self.index.values())
         names = {body for sp in plan.sounds for body in sp.modes} | {body for pair in plan.needs.pairs for body in pair}
         return sorted(self.index[name] for name in names if name in self.index)

@@ -150,3 +150,24 @@ def test_bodies_that_never_move_keep_their_point():
     field = WindField(sim.plan.scene, sim.plan)
     for t in (0.1, 0.37, 1.5):
         assert np.array_equal(field.speeds(fast, sim.state, t), field.speeds(every, sim.state, t))
+
+
+def test_a_sound_on_the_contacts_of_one_body_hears_each_frame_of_them():
+    """`contact(block)`: any body the block touches, so every body's state is traced. The block slides down the
+    30 degree slope from rest at a = g (sin 30 deg - 0.2 cos 30 deg) = 3.2058 m/s2 (scenes/scrape.isaac): the
+    sliding and the rolling speed both read a t at each frame (it slides without turning)."""
+    text = (SCENES / "scrape.isaac").read_text().replace(
+        "on contact(block, slope) { play lowpass(scrape(), 4 kHz) * 0.1 }",
+        "on contact(block) { play sine(440 Hz) * speed * 0.1 }")
+    sim = Simulation.from_text(text, folder=SCENES)
+    run = sim.plan.audio.record(sim)
+    from isaac_runtime.outputs import Recorder as FrameRecorder
+
+    frames = sim.plan.frame_times[sim.plan.frame_times <= 0.5 + 1e-9]
+    sim.run_frames(frames, FrameRecorder(frames, sim.plan.names))
+    (pair, series), = run.record.contacts.items()
+    assert pair == ("block",) and series["times"].size == len(frames) - 1
+    a = 9.81 * (np.sin(np.radians(30)) - 0.2 * np.cos(np.radians(30)))
+    times = series["times"].view()
+    assert np.allclose(series["speed"].view(), a * times, rtol=1e-3, atol=1e-3)
+    assert np.allclose(series["roll"].view(), series["speed"].view(), rtol=1e-9, atol=1e-12)
