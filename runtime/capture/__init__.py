@@ -261,9 +261,7 @@ class CaptureStepper:
 
         c, st, k = self.compiled, self.stage, self.substeps
         hs, total = h / k, steps * k
-        if np.ndim(t0) and k > 1:  # (the times of each step's substeps, counted from its start)
-            t0 = np.append((t0[:steps, None] + hs * np.arange(k)).ravel(), t0[steps])
-        table = c.tabulate(t0, hs, total, self.grid)
+        table = c.tabulate(t0, h, steps, self.grid * k)  # (the rows of each step's substeps, from its start)
         frame_at = np.asarray(frame_step, np.int64) * k
         done, first = 0, 0  # loop steps taken, frames recorded
         while True:

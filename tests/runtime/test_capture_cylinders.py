@@ -10,7 +10,7 @@ import pytest
 from isaac_runtime.collide.shapes import BOX, CAPSULE, CYLINDER
 from isaac_runtime.core.rotation import quat_to_matrix
 
-from .test_capture_narrow import MARGIN, compiled, random_pose, random_table
+from .test_capture_narrow import MARGIN, compiled, placed, random_pose, random_table
 
 
 # ---- cylinder-box, against brute force ---------------------------------------------------------------------------
@@ -76,13 +76,6 @@ def largest_gap(c, Rc, r, hl, x, Rb, h, rng):
     return -best
 
 
-def moved_to(table, x, R, target) -> None:
-    """Body 0 moved along the pair's deepest compiled normal until its signed distance is `target` (x changed)."""
-    for _ in range(8):
-        _p, n, d, _f, _c = compiled(table, 0, 1, x, R, margin=np.inf)
-        x[0] += n[np.argmax(d)] * (target + d.max())
-
-
 def test_cylinder_box_depth_agrees_with_brute_force():
     """150 random poses, 3 mm deep to 5 mm apart: the deepest point's depth within 1e-4 m of the largest gap over
     100k directions (refined), never shallower than the deepest sampled surface point (by 2e-5 m, the sampling),
@@ -92,7 +85,7 @@ def test_cylinder_box_depth_agrees_with_brute_force():
     for trial in range(150):
         table = random_table([CYLINDER, BOX], rng)
         x, R = random_pose(rng)
-        moved_to(table, x, R, rng.uniform(-0.003, MARGIN))
+        placed(table, x, R, rng.uniform(-0.003, MARGIN), compiled, 8)
         p, n, d, f, count = compiled(table, 0, 1, x, R, margin=np.inf)
         shapes = (x[0], R[0], table.radius[0], table.half_length[0], x[1], R[1], table.half[1])
         exact, sampled = largest_gap(*shapes, rng), deepest_point(*shapes)
@@ -159,7 +152,7 @@ def test_box_on_a_cylinder_and_pressing_into_it():
 def keeps_its_features(table, x, R, rng) -> bool:
     """Body 0 moved along the deepest normal to a random depth up to 3 mm (x changed): whether its contacts keep
     their features after a 1e-7 m, 1e-6 rad move."""
-    moved_to(table, x, R, rng.uniform(-0.003, 0.0))
+    placed(table, x, R, rng.uniform(-0.003, 0.0), compiled, 8)
     f0 = compiled(table, 0, 1, x, R)[3]
     R2 = R.copy()
     R2[0] = quat_to_matrix(np.array([1.0, *rng.normal(0.0, 0.5e-6, 3)])) @ R[0]
@@ -234,7 +227,7 @@ def test_cylinder_against_a_round_shape_agrees_with_brute_force(other):
     for trial in range(150):
         table = random_table([CYLINDER, other], rng)
         x, R = random_pose(rng)
-        moved_to(table, x, R, rng.uniform(-0.003, MARGIN))
+        placed(table, x, R, rng.uniform(-0.003, MARGIN), compiled, 8)
         p, n, d, f, count = compiled(table, 0, 1, x, R, margin=np.inf)
         args = (x[0], R[0][:, 2], table.radius[0], table.half_length[0], x[1], R[1][:, 2], table.radius[1],
                 table.half_length[1], other == CAPSULE)

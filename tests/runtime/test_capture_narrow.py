@@ -85,10 +85,11 @@ def random_pose(rng, n=2):
     return rng.uniform(-0.2, 0.2, (n, 3)), quat_to_matrix(q / np.linalg.norm(q, axis=1, keepdims=True))
 
 
-def placed(table, x, R, target):
-    """Body 0 moved along the reference's normal until the pair's signed distance is `target`."""
-    for _ in range(6):
-        _, n, d, _ = reference(table, 0, 1, x, R, np.inf)
+def placed(table, x, R, target, find=reference, rounds=6):
+    """Body 0 moved along the deepest normal that `find` (the reference, or the compiled phase) gives the pair
+    until its signed distance is `target`."""
+    for _ in range(rounds):
+        n, d = find(table, 0, 1, x, R, np.inf)[1:3]
         k = int(np.argmax(d))
         x[0] += n[k] * (target + d[k])
     return x
