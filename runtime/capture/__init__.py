@@ -8,17 +8,20 @@ the exact path (runtime/collide: each impact located in time, each change of the
     solve.py    the velocity-level contact problem, projected Gauss-Seidel, warm-started by feature
     loop.py     the step: kick, contacts, solve, drift, checks, events, frames
     data.py     the run's contacts, pairs, checks and events
+    events.py   the loop's events as blocks of rows, dicts only when read
 
 `choose(plan)` says whether a scene can take this path and whether it starts on it; `CaptureStage` stands where
 the collision stage of the exact path stands (docs/collisions.md, "Many contacts").
 """
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
 
 from . import data as D
+from .events import RowEvents
 
 # a scene starts on the capturing path when it has at least this many moving bodies that collide (a heap)
 CROWD = 24
@@ -95,6 +98,7 @@ class CaptureStage:
         plan, cp = sim.plan, sim.plan.collisions
         self.sim, self.cp, self.why = sim, cp, why
         self.log = EventLog(list(plan.names), events, plan.frame_times)
+        self._quoted = [json.dumps(name) for name in self.log.names]  # (events.json's)
         n = plan.n
         kind = cp.table.kind
         planes = np.array([i for i in cp.collidable if kind[i] == PLANE], np.int64)
@@ -144,17 +148,12 @@ class CaptureStage:
             self.sweep = sw._replace(pairs=np.zeros((2 * int(sw.count[0]), 2), np.int64))
 
     def drain(self) -> None:
-        """The loop's events into the event log (impacts and pressing pairs, in the order written)."""
-        ev, log = self.events, self.log
+        """The loop's events into the run's events (impacts and pressing pairs, in the order written), as a block of
+        rows (collide/events.py RowEvents: dicts only when read)."""
+        ev = self.events
         count = int(ev.count[0])
-        append, event, simple = log.events.append, log._event, (None, None)
-        # the rows as Python floats at once: read value by value, numpy's scalars cost a heap's 118,000 events 1 s
-        for t, kind, a, b, px, py, pz, nx, ny, nz, impulse, slip, approach, feature in \
-                ev.rows[:min(count, len(ev.rows))].tolist():
-            a, b = int(a), int(b)
-            parts = self._parts(a, b, int(feature)) if self.compound else simple
-            append(event(t, a, b, (px, py, pz), (nx, ny, nz), impulse, slip, approach,
-                         "impact" if kind == D.IMPACT else "contact", parts))
+        rows = ev.rows[:min(count, len(ev.rows))].copy()
+        self.log.events.add_rows(RowEvents(rows, self.log.names, self._quoted, self._parts if self.compound else None))
         if count > len(ev.rows):
             self.events = D.events(2 * count)
         ev.count[0] = 0
