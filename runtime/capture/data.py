@@ -23,8 +23,9 @@ the Python side when a step finds more than they hold (the step is then taken ag
     Sweep      order (c,) the collidable bodies that are not planes; planes (p,);
                box (n+1,6) each body's world box [lo, hi] grown by its reach over the step; the grid (broad.py):
                cell (n+1,4) each body's cell (x, y, z) and bucket (-1: not in the grid), start (B+1,) where
-               each of the B buckets (a power of two over 2c) starts in slots (c,), the bodies by bucket, fill (B,)
-               scratch; excluded (e,) sorted
+               each of the B buckets (a power of two over 8c) starts in slots (c,), the bodies by bucket, and
+               sorted_box (c,6) their boxes; fill (B,) scratch; frame (7,) the cells the grid spans
+               [dense, x0, y0, z0, nx, ny, nz]; excluded (e,) sorted
                pair keys a * n + b (a < b) that never collide now; pairs (P,2), count (1,) the candidate pairs;
                work (16,4) the narrow phase's scratch (box-box clipping); struck_in (n+1,) the impact
                generation that last struck each body (solve.py impacts)
@@ -44,7 +45,8 @@ FEATURES = 1 << 24
 
 Contacts = namedtuple("Contacts", "count a b point normal depth feature key jac turn inv mass mu bounce lam push "
                                   "before acc old_key old_lam old_acc hit e base approach old_point old_used match runs")
-Sweep = namedtuple("Sweep", "order planes box excluded pairs count work struck_in cell start slots fill")
+Sweep = namedtuple("Sweep", "order planes box excluded pairs count work struck_in cell start slots fill sorted_box "
+                             "frame")
 Checks = namedtuple("Checks", "worst counts")
 # the joints' rows (joints.py), by global row: lam (M,) impulse of the last step, mass (M,), target (M,) velocity
 JointRows = namedtuple("JointRows", "lam mass target")
@@ -79,11 +81,13 @@ def grown(old: Contacts, capacity: int) -> Contacts:
 
 
 def sweep(order, planes, n: int, excluded, capacity: int) -> Sweep:
-    buckets = 1 << (2 * max(len(order), 1) - 1).bit_length()
+    buckets = 1 << (8 * max(len(order), 1) - 1).bit_length()
+    c = max(len(order), 1)
     return Sweep(np.ascontiguousarray(order, np.int64), np.ascontiguousarray(planes, np.int64), np.zeros((n + 1, 6)),
                  np.ascontiguousarray(np.sort(excluded), np.int64), np.zeros((max(int(capacity), 16), 2), np.int64),
                  np.zeros(1, np.int64), np.zeros((16, 4)), np.zeros(n + 1, np.int64), np.zeros((n + 1, 4), np.int64),
-                 np.zeros(buckets + 1, np.int64), np.zeros(max(len(order), 1), np.int64), np.zeros(buckets, np.int64))
+                 np.zeros(buckets + 1, np.int64), np.zeros(c, np.int64), np.zeros(buckets, np.int64), np.zeros((c, 6)),
+                 np.zeros(7, np.int64))
 
 
 def joint_rows(rows: int) -> JointRows:
