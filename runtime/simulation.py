@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .blowup import NumericalError, constraint_failure, failure
-from .collide.events import EventList
+from .outputs.events import EventList
 from .core import data as D
 from .core.bodies import RUNAWAY_SPEED  # noqa: F401 (callers of the step loop import it from here)
 from .core.bodies import place_kinematic
@@ -95,7 +95,7 @@ class Simulation:
     def __init__(self, plan: Plan):
         self.plan = plan
         self.state = State.initial(plan)
-        self.events = EventList()  # (a list of the event dicts: collide/events.py)
+        self.events = EventList()  # (a list of the event dicts of collide/events.py)
         self.compile_seconds = 0.0  # spent compiling the core (a first run on a machine), apart from the run
         # the notice names the entries the run will call: a heap's starts on the capturing path and never calls the
         # exact stepper's (which, never compiled, made every run of a heap announce a compile it did not do)

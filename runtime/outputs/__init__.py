@@ -120,7 +120,7 @@ def _json_text(data) -> str:
     standard library's compiled encoder, instead of copied first (events.json: 0.13 s of a 12,700-event run)."""
     if isinstance(data, list) or hasattr(data, "json_items"):
         encode = json.JSONEncoder(sort_keys=True, allow_nan=False, default=_plain).encode
-        # (a run's events, collide/events.py EventList, write their blocks of rows themselves)
+        # (a run's events, outputs/events.py, write their blocks of rows themselves)
         items = data.json_items(encode) if hasattr(data, "json_items") else map(encode, data)
         return "[\n" + ",\n".join(items) + "\n]" if len(data) else "[]"
     return json.dumps(data, indent=1, sort_keys=True, allow_nan=False, default=_plain)

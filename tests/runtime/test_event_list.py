@@ -1,4 +1,4 @@
-"""A run's events (collide/events.py EventList): the capturing loop's blocks of rows read as the dicts the exact
+"""A run's events (runtime/outputs/events.py): the capturing loop's blocks of rows read as the dicts the exact
 path appends, and written to events.json, from their rows, exactly as the dicts would be."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from isaac_runtime.capture.events import RowEvents
-from isaac_runtime.collide.events import EventList
+from isaac_runtime.outputs.events import EventList
 from isaac_lang.load import load_text
 from isaac_runtime.outputs import write_json
 from isaac_runtime.run import RunOptions, simulate, write_outputs
