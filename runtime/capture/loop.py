@@ -281,14 +281,15 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
     for c in range(found):
         ct.acc[c] += ct.lam[c, 0] + ct.hit[c]
     _pair_events(ct, ev, t, h, False)
-    # the position pass: contacts deeper than the slop apart, the joints' errors closed, positions only
+    # the position pass: contacts deeper than the slop apart, those struck across a gap brought to where their
+    # impact's time puts them, the joints' errors closed; positions only
     moved = jointed or deep(ct)
     if moved:
-        clear(pseudo, ct)
+        clear(pseudo, ct, y, h, jointed)
         for _ in range(POSITION_SWEEPS):
             if jointed:
                 close_joints(m, act, s, s.inv_inertia, jt, pseudo)
-            separate(ct, pseudo, h)
+            separate(ct, pseudo, y, h)
     _drift(m, s, y, pseudo, moved, h)
     if last:
         place_kinematic(m.kinematic, table, j + grid, y)

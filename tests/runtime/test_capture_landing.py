@@ -2,10 +2,11 @@
 another, dropped from 10 to 39 cm onto a floor. The exact answer for each: it lands once, at t = sqrt(2 d / g) after
 a fall of d, with the impulse m sqrt(2 g d), and rests on the floor from then on.
 
-Known defect (found 2026-12-06, not mended): the impact is solved while the sphere is still up to |u| h above the
-floor (the speculative contact's gap), and restitution 0 stops it there: at 2.3 m/s and 1 ms it stops 0.99 mm up,
-falls again for 14 ms, and lands again (2 or 3 impact events per landing in the dynamics plan, 1 or 2 in the
-procedural). The first event is right (impulse within 0.4 %, time within 0.5 ms)."""
+A landing is struck in the step that closes its speculative gap, while the sphere is still up to |u| h above the
+floor; the position pass then brings it where the impact at its time puts it (capture/solve.py `clear`). Before
+that (found 2026-12-06, mended 2026-12-07), restitution 0 stopped it at the gap: at 2.3 m/s and 1 ms 0.99 mm up,
+to fall again for 14 ms and land again (2 or 3 impact events per landing in the dynamics plan, 1 or 2 in the
+procedural)."""
 from __future__ import annotations
 
 import math
@@ -55,8 +56,6 @@ def test_the_first_landing_is_the_exact_one(plan):
         assert first["impulse"] == pytest.approx(MASS * math.sqrt(2 * G * fall), rel=5e-3)
 
 
-@pytest.mark.xfail(strict=True, reason="the capturing path stops a landing at its speculative gap (up to |u| h above "
-                                       "the floor) and lands it again: 2-3 impacts per landing (module docstring)")
 @pytest.mark.parametrize("plan", PLANS)
 def test_each_sphere_lands_once(plan):
     _, by_body = landings(plan)
@@ -68,9 +67,9 @@ def test_bounces_keep_their_restitution(plan):
     """The same spheres of rubber (e = 0.7): each bounce's impulse is e times the last one's, and the flights between
     bounces last 2 e^k v1 / g, v1 = sqrt(2 g d) (Newton's restitution). The step's tolerance: the step bounces the
     speed of its end, after all of its gravity (h = 1 ms in both plans), so a bounce's speed is off by up to
-    (1 + e) g h from the moment of impact's, and each flight's time by up to 2 (1 + e) h; a bounce struck at the
-    speculative gap (module docstring) starts its flight up to |u| h too high. Measured, both plans: the third
-    landing 4.1 ms from its exact time (bound 7.3 ms), its impulse 3.7 % off (bound 4.8 % for the fastest)."""
+    (1 + e) g h from the moment of impact's, and each flight's time by up to 2 (1 + e) h. Measured, both plans: the
+    third landing 4.0 ms from its exact time (bound 7.3 ms), its impulse 1.4 % off (bound 4.8 % for the
+    fastest; 3.7 % while a bounce struck at the gap started its flight up to |u| h too high)."""
     e, h = 0.7, 1e-3
     _, by_body = landings(plan, restitution=e, until=0.9)
     for i, height in enumerate(heights()):
@@ -84,3 +83,29 @@ def test_bounces_keep_their_restitution(plan):
         for k, (event, exact) in enumerate(zip(bounces, times)):
             assert event["time"] == pytest.approx(exact, abs=0.5e-3 + k * 2 * (1 + e) * h)
             assert event["impulse"] == pytest.approx(MASS * (1 + e) * e ** k * v1, abs=MASS * (1 + e) * (k + 1) * G * h)
+
+
+@pytest.mark.parametrize("plan", PLANS)
+@pytest.mark.parametrize("e, gap", [(0.5, 0.2), (0.0, 0.31), (1.0, 0.1234)])
+def test_two_bodies_struck_across_a_gap_are_where_the_impact_at_its_time_leaves_them(plan, e, gap):
+    """Sphere a (3 kg) at u = 1.3 m/s onto sphere b (1 kg) at rest, no gravity, on the capturing path; their
+    surfaces `gap` apart, so that the impact falls inside a step (t_c = gap / u), at a gap the speculative contact
+    found. Newton's restitution: v_a = (m_a - e m_b) u / M, v_b = (1 + e) m_a u / M from t_c on. At 0.5 s each is
+    where that motion puts it, to 1e-9 m: struck at the gap and drifted at those speeds, a is up to (1 + e) g m_b / M
+    short and b as much behind (up to 0.5 mm at u h = 1.3 mm)."""
+    from .test_capture import scene
+
+    u, ma, mb, r = 1.3, 3.0, 1.0, 0.05
+    bodies = (f"  body a sphere {{ radius 5 cm  mass {ma} kg  material m  at (0, 1, 0) m  velocity ({u}, 0, 0) m/s }}\n"
+              f"  body b sphere {{ radius 5 cm  mass {mb} kg  material m  at ({2 * r + gap}, 1, 0) m }}")
+    sim = Simulation.from_text(scene(bodies, plan, end=0.5, gravity=0.0,
+                                     material=f"density 1000 kg/m3  friction 0.5  restitution {e}"))
+    sim.switch_to_capture("test")
+    sim.advance_to(0.5)
+    t_c, M = gap / u, ma + mb
+    va, vb = (ma - e * mb) * u / M, (1 + e) * ma * u / M
+    (impact,) = [event for event in sim.events if event["kind"] == "impact"]
+    assert impact["time"] == pytest.approx(t_c, abs=1e-9)
+    assert sim.state.y[sim.body("a"), 0] == pytest.approx(u * t_c + va * (0.5 - t_c), abs=1e-9)
+    assert sim.state.y[sim.body("b"), 0] == pytest.approx(2 * r + gap + vb * (0.5 - t_c), abs=1e-9)
+    assert sim.state.y[sim.body("a"), 7] == pytest.approx(va, abs=1e-12)
