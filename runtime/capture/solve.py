@@ -358,6 +358,7 @@ def clear(pseudo, ct, y, h, jointed):
         depth = ct.depth[c]
         if ct.hit[c] > 0.0 and depth < 0.0 and ct.approach[c] > 0.0:
             u, gap = speed(ct, c, 0, y), -depth
+            # u~ = (max(u+, 0) (h - tau) - g) / h - u+, tau = g / |u|: the gap it ends with less the drift's, over h
             ct.bounce[c] = (max(u, 0.0) * (h - gap / ct.approach[c]) - gap) / h - u
             ct.base[c] = ct.mass[c, 0] * ct.bounce[c]
         elif depth > SLOP:
@@ -386,6 +387,7 @@ def separate(ct, pseudo, y, h):
         if pseudo[a, MOVED] == 0.0 and pseudo[b, MOVED] == 0.0 and _still(ct, c):
             continue  # (its update would be max(0, m_n target) = 0: most of a heap's rows, skipped)
         if math.isnan(ct.bounce[c]):
+            # u~ >= -(gap / h + u+): the pass may close no more than what the drift at u+ leaves of its gap
             ct.bounce[c] = min(0.0, -(max(-ct.depth[c], 0.0) / h + speed(ct, c, 0, y)))
         lam = max(ct.base[c], ct.push[c] + ct.mass[c, 0] * (ct.bounce[c] - speed(ct, c, 0, pseudo)))
         if lam != ct.push[c]:
