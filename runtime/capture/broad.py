@@ -255,9 +255,9 @@ def _hash_bodies(sw, cell, big):
 
 
 @kernel
-def _overlap(box, i, j):
-    return not (box[j, 0] > box[i, 3] or box[i, 0] > box[j, 3] or box[j, 1] > box[i, 4] or box[i, 1] > box[j, 4]
-                or box[j, 2] > box[i, 5] or box[i, 2] > box[j, 5])
+def _meet(p, q):
+    """Whether the boxes p and q ([lo, hi], (6,)) overlap."""
+    return not (q[0] > p[3] or p[0] > q[3] or q[1] > p[4] or p[1] > q[4] or q[2] > p[5] or p[2] > q[5])
 
 
 @kernel
@@ -267,7 +267,7 @@ def _grid_pairs(sw, dynamic, n, i):
     mask = len(sw.start) - 2
     dense = sw.frame[0] == 1
     cx, cy, cz = sw.cell[i, 0], sw.cell[i, 1], sw.cell[i, 2]
-    x0, y0, z0, x1, y1, z1 = sw.box[i, 0], sw.box[i, 1], sw.box[i, 2], sw.box[i, 3], sw.box[i, 4], sw.box[i, 5]
+    mine = sw.box[i]
     for dx in range(0, 2):
         for dy in range(-1 if dx > 0 else 0, 2):
             for dz in range(-1 if (dx > 0 or dy > 0) else 0, 2):
@@ -282,9 +282,7 @@ def _grid_pairs(sw, dynamic, n, i):
                         continue
                     if dx == 0 and dy == 0 and dz == 0 and j <= i:
                         continue
-                    other = sw.sorted_box[slot]
-                    if not (other[0] > x1 or x0 > other[3] or other[1] > y1 or y0 > other[4] or other[2] > z1
-                            or z0 > other[5]):
+                    if _meet(mine, sw.sorted_box[slot]):
                         _add_pair(sw, dynamic, n, i, j)
 
 
@@ -305,6 +303,6 @@ def find_pairs(shapes, sw, dynamic, y, R, h, margin, parts, poses):
         # a big body: against every other box (a pair of big ones once, from the lower index)
         for jdx in range(len(sw.order)):
             j = sw.order[jdx]
-            if j != i and (sw.cell[j, 3] >= 0 or j > i) and _overlap(sw.box, i, j):
+            if j != i and (sw.cell[j, 3] >= 0 or j > i) and _meet(sw.box[i], sw.box[j]):
                 _add_pair(sw, dynamic, n, i, j)
     _plane_pairs(shapes, sw, dynamic, n, y, R)

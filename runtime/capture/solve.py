@@ -327,10 +327,16 @@ def sweep(ct, y):
 
 
 @kernel
+def _struck_across_gap(ct, c):
+    """Whether contact c was struck this step while still apart (`clear`)."""
+    return ct.hit[c] > 0.0 and ct.depth[c] < 0.0 and ct.approach[c] > 0.0
+
+
+@kernel
 def deep(ct):
-    """Whether the position pass has work: a contact deeper than SLOP, or one struck across a gap (`separate`)."""
+    """Whether the position pass has work: a contact deeper than SLOP, or one struck across a gap (`clear`)."""
     for c in range(ct.count[0]):
-        if ct.depth[c] > SLOP or (ct.hit[c] > 0.0 and ct.depth[c] < 0.0 and ct.approach[c] > 0.0):
+        if ct.depth[c] > SLOP or _struck_across_gap(ct, c):
             return True
     return False
 
@@ -356,7 +362,7 @@ def clear(pseudo, ct, y, h, jointed):
     for c in range(ct.count[0]):
         ct.push[c] = 0.0
         depth = ct.depth[c]
-        if ct.hit[c] > 0.0 and depth < 0.0 and ct.approach[c] > 0.0:
+        if _struck_across_gap(ct, c):
             u, gap = speed(ct, c, 0, y), -depth
             # u~ = (max(u+, 0) (h - tau) - g) / h - u+, tau = g / |u|: the gap it ends with less the drift's, over h
             ct.bounce[c] = (max(u, 0.0) * (h - gap / ct.approach[c]) - gap) / h - u

@@ -14,7 +14,7 @@ once, for `rest_after` steps in a row,
 and from then on each step leaves the state as it is, for as long as the inputs stay constant. The rest of a step
 goes on as usual: the contacts' impulses (lambda h), the traced motion, the frames and their checks. A step whose
 inputs change ends the rest: it is integrated, and rest must be found again. A call of the loop goes on with the
-count of the call before (`still_at_start`: a scene with sound, or live, steps a call a frame) only when it starts
+count of the call before (`still_at_start`, `resumes`: a live run calls once a frame) only when it starts
 from the state that call ended with and with the same active rows; whatever changed the state or the rows in
 between (an impulse of the collision stage, a contact made or lost, a constraint switching, a drag) starts the
 count afresh.

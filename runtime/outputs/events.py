@@ -68,7 +68,7 @@ class EventList(Sequence):
             yield from self._dicts(k)
 
     def __eq__(self, other) -> bool:
-        return isinstance(other, (Sequence, list)) and len(self) == len(other) and list(self) == list(other)
+        return isinstance(other, Sequence) and len(self) == len(other) and list(self) == list(other)
 
     __hash__ = None
 
