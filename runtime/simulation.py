@@ -526,7 +526,9 @@ class Simulation:
         # over at the first impact of one, whatever it strikes (Collider.on_epoch marks them)
         self.collider.jointed_strike = plan.solver == "procedural" and self.capture_refused is None
         self.active_rows()
-        self.collider.start()
+        self.collider.start(self._epoch())
+        if self.collider.wants_capture:
+            self.switch_to_capture(self.collider.wants_capture)
 
     @staticmethod
     def _starts_capturing(plan) -> bool:
