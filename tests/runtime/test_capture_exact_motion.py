@@ -1,0 +1,96 @@
+"""Motion on the capturing path against its exact answers, in both plans (a crowd of resting spheres far away makes
+the run take it from its start). The step moves the bodies at v+, the velocity after its forces and impulses
+(Moreau-Jean's scheme as symplectic Euler), which is first order in the step h:
+
+- a body in flight of N steps of h follows y0 + v0 t - g t^2 / 2 - g h t / 2 at t = N h, to round-off (the last
+  term is the scheme's: h (v_1 + ... + v_N), v_k = v0 - k g h);
+- a block sliding at v0 stops after v0^2 / (2 sqrt(mu_a mu_b) g), short by at most v0 h / 2 (the friction of each
+  step taken before its drift): measured 1.1 % short at v0 = 0.5 m/s and 1 ms, 3.7 % at 4 ms (2026-12-07);
+- a ball landing with slip v0 and no spin and staying down (e = 0) leaves rolling, at 5/7 v0, spin -5/7 v0 / r.
+  With e > 0 it keeps its slip (a known defect, strict xfail below): the bounce parts in the step it lands, and
+  friction's disc is mu lam_n, without the impact's impulse. Bounding it by mu (lam_n + hit) gave 5/7 v0 but
+  created energy in 123 steps of the shipped heap (friction at an eccentric impact raising the normal speed), and
+  slowed the dominoes' wave below 1.2 sqrt(g d): not landed.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from isaac.api import Simulation
+
+PLANS = {"dynamics": "solver dynamics {{ integrator rk4  step {step} }}",
+         "procedural": "solver procedural {{ step {step}  substeps 10 }}"}
+STEPS = {"dynamics": ("1 ms", "4 ms"), "procedural": ("10 ms", "40 ms")}
+G = 9.81
+# 24 spheres resting apart on a far static slab: a heap (capture.crowded), so the run is on the capturing path from
+# its start, and nothing of the exact path's own integration is in the figures
+CROWD = ("  material far { density 2000 kg/m3  friction 0.6  restitution 0.3 }\n"
+         "  body slab static box { size (5, 0.2, 0.4) m  material far  at (0, -0.1, -3) m }\n"
+         + "".join(f"  body s{k} sphere {{ radius 5 cm  material far  at ({0.2 * k - 2.3:.1f}, 0.05, -3) m }}\n"
+                   for k in range(24)))
+
+
+def scene(plan: str, step: str, bodies: str, until: float) -> Simulation:
+    return Simulation.from_text(
+        f"scene exact {{\n  time 0 s .. {until} s\n  gravity (0, -9.81, 0) m/s2\n"
+        f"  {PLANS[plan].format(step=step)}\n{CROWD}{bodies}}}\n")
+
+
+def row(sim: Simulation, name: str) -> np.ndarray:
+    return sim.state.y[sim.plan.names.index(name)]
+
+
+def loop_step(sim: Simulation) -> float:
+    """The capturing loop's h: the plan's step (at most a frame's) over the procedural plan's substeps."""
+    return sim.plan.step / sim.stepper.substeps
+
+
+@pytest.mark.parametrize("plan", PLANS)
+def test_a_body_in_flight_follows_the_schemes_parabola(plan):
+    for step in STEPS[plan]:
+        sim = scene(plan, step, "  body ball sphere { radius 5 cm  mass 1 kg  at (0, 1, 0) m  velocity (1, 2, 0) m/s }\n",
+                    0.4)
+        sim.advance_to(0.4)
+        assert sim.contact_report()["path"] == "capturing"
+        t, h = 0.4, loop_step(sim)
+        assert row(sim, "ball")[:3] == pytest.approx([t, 1 + 2 * t - G * t * t / 2 - G * h * t / 2, 0.0], abs=1e-9)
+
+
+@pytest.mark.parametrize("plan", PLANS)
+@pytest.mark.parametrize("v0, mu_block, mu_floor", [(0.5, 0.9, 0.8), (1.0, 1.0, 1.0), (2.5, 0.3, 0.6)])
+def test_a_sliding_block_stops_where_coulomb_says_to_first_order(plan, v0, mu_block, mu_floor):
+    for step in STEPS[plan]:
+        sim = scene(plan, step,
+                    f"  material blk {{ density 8000 kg/m3  friction {mu_block}  restitution 0 }}\n"
+                    f"  material fl {{ density 800 kg/m3  friction {mu_floor}  restitution 0 }}\n"
+                    "  body floor plane { material fl }\n"
+                    f"  body block box {{ size (5, 5, 5) cm  material blk  at (0, 0.025, 0) m  velocity ({v0}, 0, 0) m/s }}\n",
+                    2.0)
+        sim.advance_to(2.0)
+        assert sim.contact_report()["path"] == "capturing"
+        distance = v0 ** 2 / (2 * math.sqrt(mu_block * mu_floor) * G)
+        travelled, h = row(sim, "block")[0], loop_step(sim)
+        assert distance - v0 * h / 2 - 1e-3 * distance <= travelled <= distance * (1 + 1e-3)
+        assert np.abs(row(sim, "block")[7:13]).max() < 1e-9
+
+
+@pytest.mark.parametrize("plan", PLANS)
+@pytest.mark.parametrize("restitution", [
+    0.0,
+    pytest.param(0.5, marks=pytest.mark.xfail(strict=True, reason="no friction at an impact that parts at once")),
+    pytest.param(0.8, marks=pytest.mark.xfail(strict=True, reason="no friction at an impact that parts at once"))])
+def test_a_ball_landing_with_slip_leaves_rolling(plan, restitution):
+    v0, r = 1.0, 0.05
+    sim = scene(plan, STEPS[plan][0],
+                f"  material m {{ density 1000 kg/m3  friction 0.8  restitution {restitution} }}\n"
+                "  body floor plane { material m }\n"
+                f"  body ball sphere {{ radius {r} m  material m  at (0, 0.25, 0) m  velocity ({v0}, 0, 0) m/s }}\n",
+                0.3)
+    sim.advance_to(0.3)  # (lands at 0.19 s)
+    assert sim.contact_report()["path"] == "capturing"
+    ball = row(sim, "ball")
+    assert ball[7] == pytest.approx(5 / 7 * v0, abs=1e-6)
+    assert ball[12] == pytest.approx(-5 / 7 * v0 / r, abs=1e-5)
