@@ -179,14 +179,19 @@ class Recorder:
         """The steps of one kernel call (Simulation.add_tracer): their end times (k,) and trace (k, b, 13), the
         state rows of self.bodies after each; then the events they brought, each read with the state of the step
         it happened in."""
-        first = self.seen
-        new = sim.events[first:] if len(sim.events) > first else NO_EVENTS
-        self.seen = first + len(new)
+        first, events = self.seen, sim.events
+        self.seen = len(events)
         self._sample_steps(times, trace)
         steps = _Steps(times, trace, self._last)
         if len(times):
             self._last = (float(times[-1]), trace[-1].copy())
-        self._events(steps, new, first)
+        if self.record.contacts:
+            new = events[first:] if self.seen > first else NO_EVENTS
+            self._hits(steps, [(first + k, event) for k, event in enumerate(new)
+                               if event.get("kind", "impact") != "contact"])
+            self._contacts(new, steps)
+        elif self.seen > first:  # (no sound listens to pressing pairs: only the impacts become dicts)
+            self._hits(steps, events.impacts_from(first))
 
     def _sample_start(self, sim) -> None:
         """The table's first row: the state the run starts from."""
@@ -202,15 +207,12 @@ class Recorder:
         names = {body for sp in plan.sounds for body in sp.modes} | {body for pair in plan.needs.pairs for body in pair}
         return sorted(self.index[name] for name in names if name in self.index)
 
-    def _events(self, steps: "_Steps", new_events: list, first: int) -> None:
-        record, plan = self.record, self.plan
-        for k, event in enumerate(new_events):
-            if event.get("kind", "impact") != "contact":
-                rows = steps.at(float(event["time"]))
-                local = self.local_points(rows, event.get("point", (0.0, 0.0, 0.0)), event.get("bodies", ()))
-                record.hits.append(make_hit(plan, event, local, first + k))
-        if record.contacts:
-            self._contacts(new_events, steps)
+    def _hits(self, steps: "_Steps", impacts: list) -> None:
+        """A hit of each (index in events.json, event) of an impact, read with the state of its step."""
+        for index, event in impacts:
+            rows = steps.at(float(event["time"]))
+            local = self.local_points(rows, event.get("point", (0.0, 0.0, 0.0)), event.get("bodies", ()))
+            self.record.hits.append(make_hit(self.plan, event, local, index))
 
     def _sample_steps(self, times: np.ndarray, trace: np.ndarray) -> None:
         """The table's rows of these steps: time, placed bodies' positions, wind speeds (a body not in the run

@@ -20,22 +20,36 @@ class RowEvents:
     def __init__(self, rows: np.ndarray, names: list, quoted: list, parts=None):
         self.rows, self.names, self.quoted, self.parts = rows, names, quoted, parts
         self._dicts: list | None = None
+        self._impacts: list | None = None  # (index in the block, dict) of its impacts, when asked for alone
 
     def __len__(self) -> int:
         return len(self.rows)
 
     def dicts(self) -> list:
-        """The events as dicts (collide/events.py), made once."""
+        """The events as dicts (collide/events.py), made once (an impact's dict is the one `impacts` gave)."""
         if self._dicts is None:
-            self._dicts = self._made()
+            self._dicts = self._made(self.rows.tolist())
+            for k, event in self._impacts or ():
+                self._dicts[k] = event
         return self._dicts
 
-    def _made(self) -> list:
+    def impacts(self) -> list:
+        """(index in the block, dict) of its impacts only, in order, made once: the dicts of its pressing rows are
+        not made (a row of 20 dominoes presses on about 60 pairs at every frame, and clicks 54 times in 2 s)."""
+        if self._impacts is None:
+            if self._dicts is not None:
+                self._impacts = [(k, event) for k, event in enumerate(self._dicts) if event["kind"] == "impact"]
+            else:
+                where = np.flatnonzero(self.rows[:, 1] == IMPACT)
+                self._impacts = list(zip(where.tolist(), self._made(self.rows[where].tolist())))
+        return self._impacts
+
+    def _made(self, rows: list) -> list:
         names, parts, simple = self.names, self.parts, [None, None]
         out = []
         append = out.append
         # (the rows as Python floats at once: read value by value, numpy's scalars cost a heap's events 1 s)
-        for t, kind, a, b, px, py, pz, nx, ny, nz, impulse, slip, approach, feature in self.rows.tolist():
+        for t, kind, a, b, px, py, pz, nx, ny, nz, impulse, slip, approach, feature in rows:
             a, b = int(a), int(b)
             append({"time": t, "bodies": [names[a], names[b]], "point": [px, py, pz], "normal": [nx, ny, nz],
                     "impulse": impulse, "tangential_speed": slip, "normal_speed": approach,

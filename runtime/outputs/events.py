@@ -63,6 +63,20 @@ class EventList(Sequence):
         chunk = self._chunks[k]
         return chunk if isinstance(chunk, list) else chunk.dicts()  # (a block makes its dicts once)
 
+    def impacts_from(self, first: int) -> list:
+        """(index, dict) of the events from index `first` on that are not pressing ("contact") events, in order;
+        a block of rows makes the dicts of its impacts only."""
+        out: list = []
+        for k in range(bisect.bisect_right(self._ends, first), len(self._chunks)):
+            chunk = self._chunks[k]
+            start = self._ends[k] - len(chunk)
+            if isinstance(chunk, list):
+                found = ((i, event) for i, event in enumerate(chunk) if event.get("kind", "impact") != "contact")
+            else:
+                found = chunk.impacts()
+            out += [(start + i, event) for i, event in found if start + i >= first]
+        return out
+
     def __iter__(self):
         for k in range(len(self._chunks)):
             yield from self._dicts(k)

@@ -47,6 +47,23 @@ def test_an_event_list_reads_as_the_list_of_its_dicts_in_order():
     assert events[::2] == plain[::2] and events == plain and events != plain[:4]
 
 
+def test_the_impacts_from_an_index_are_the_events_that_are_not_contacts_and_stay_the_same_dicts():
+    block = RowEvents(np.concatenate([ROWS, ROWS]), NAMES, QUOTED)
+    events = EventList([{"n": 0}, {"n": 1, "kind": "contact"}])
+    events.add_rows(block)
+    events.append({"n": 6, "kind": "impact"})
+    plain = [(k, e) for k, e in enumerate(list(EventList(list(events)))) if e.get("kind", "impact") != "contact"]
+    for first in range(len(events) + 1):
+        found = events.impacts_from(first)
+        assert [(k, e) for k, e in found] == [(k, e) for k, e in plain if k >= first]
+    # a block's impacts are the very dicts it reads as later, made once
+    made = dict(events.impacts_from(0))
+    assert made[2] is events[2] and made[4] is events[4] and block.impacts() is block.impacts()
+    # and read the other way round
+    other = RowEvents(ROWS.copy(), NAMES, QUOTED)
+    assert other.dicts()[0] is other.impacts()[0][1] and len(other.impacts()) == 1
+
+
 def test_a_block_of_rows_writes_the_json_its_dicts_would(tmp_path):
     def parts(a, b, feature):
         return [f"part{feature}", None]
