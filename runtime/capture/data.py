@@ -30,7 +30,8 @@ the Python side when a step finds more than they hold (the step is then taken ag
                [dense, x0, y0, z0, nx, ny, nz]; excluded (e,) sorted
                pair keys a * n + b (a < b) that never collide now; pairs (P,2), count (1,) the candidate pairs;
                work (16,4) the narrow phase's scratch (box-box clipping); struck_in (n+1,) the impact
-               generation that last struck each body (solve.py impacts)
+               generation that last struck each body (solve.py impacts); held (n+1,) whether an active joint row
+               joins each body to another moving body (valid while the scene has joints: loop.py `_mark_held`)
     Checks     worst (8,) float: [0] deepest interpenetration (m), [1] its time, [2] its body a, [3] b,
                [4] largest energy a step's contact impulses created (J), [5] its time, [6] a, [7] b;
                counts (4,) int: [0] steps that found interpenetration over the limit, [1] steps whose contact
@@ -48,7 +49,7 @@ FEATURES = 1 << 24
 Contacts = namedtuple("Contacts", "count a b point normal depth feature key jac turn inv mass mu bounce lam push "
                                   "before acc old_key old_lam old_acc hit e base approach old_point old_used match runs")
 Sweep = namedtuple("Sweep", "order planes box excluded pairs count work struck_in cell start slots fill sorted_box "
-                             "frame")
+                             "frame held")
 Checks = namedtuple("Checks", "worst counts")
 # the joints' rows (joints.py), by global row: lam (M,) impulse of the last step, mass (M,), target (M,) velocity
 JointRows = namedtuple("JointRows", "lam mass target")
@@ -89,7 +90,7 @@ def sweep(order, planes, n: int, excluded, capacity: int) -> Sweep:
                  np.ascontiguousarray(np.sort(excluded), np.int64), np.zeros((max(int(capacity), 16), 2), np.int64),
                  np.zeros(1, np.int64), np.zeros((16, 4)), np.zeros(n + 1, np.int64), np.zeros((n + 1, 4), np.int64),
                  np.zeros(buckets + 1, np.int64), np.zeros(c, np.int64), np.zeros(buckets, np.int64), np.zeros((c, 6)),
-                 np.zeros(7, np.int64))
+                 np.zeros(7, np.int64), np.zeros(n + 1, np.bool_))
 
 
 def joint_rows(rows: int) -> JointRows:

@@ -141,6 +141,20 @@ def _touchdowns(ct, h, touch):
 
 
 @kernel
+def _mark_held(m, act, held):
+    """held[b] <- whether an active joint row joins body b to another moving body (a link of a chain, a clapper
+    hung in its bell; not a ball of the cradle on its string to the frame, whose strikes a pairwise impulse passes
+    down the row as the cradle does: bounced in the solve, the row moved off together)."""
+    for b in range(len(held)):
+        held[b] = False
+    for i in range(len(act.rows)):
+        k = m.constraints.row_instance[act.rows[i]]
+        a, b = m.constraints.body[k, 0], m.constraints.body[k, 1]
+        if a >= 0 and b >= 0 and m.bodies.dynamic[a] and m.bodies.dynamic[b]:
+            held[a], held[b] = True, True
+
+
+@kernel
 def _event(ev, t, kind, a, b, point, normal, impulse, slip, approach, feature):
     i = ev.count[0]
     ev.count[0] = i + 1
@@ -272,7 +286,8 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
     if jointed:
         evaluate_rows(m, act, s, y, table, j)
         prepare_joints(m, act, s, s.inv_inertia, jt, y, h)
-    impacts(ct, y, h, resting, sw.struck_in)
+        _mark_held(m, act, sw.held)
+    impacts(ct, y, h, resting, sw.struck_in, sw.held, jointed)
     for _ in range(VELOCITY_SWEEPS):
         if jointed:
             sweep_joints(m, act, s, s.inv_inertia, jt, y)
