@@ -42,27 +42,20 @@ def eligible(plan) -> str | None:
     cp = plan.collisions
     if cp is None:
         return "no collisions"
+    from ..collide.shapes import kinds_of
     elements = cp.table.elements
     if elements is not None:
         # the two bodies of most parts (a body that is its own shape has one element)
         largest = np.sort(np.maximum(elements.count[cp.collidable], 1))[-2:]
         if int(np.prod(largest)) * LOCAL_FEATURES > D.FEATURES:
             return "compound bodies with more pairs of parts than a contact key holds"
-    kinds = set().union(*(_kinds(cp, i) for i in cp.collidable))
-    moving = set().union(*(_kinds(cp, i) for i in cp.collidable if plan.dynamic[i]))
+    kinds = set().union(*(kinds_of(cp.table, i) for i in cp.collidable))
+    moving = set().union(*(kinds_of(cp.table, i) for i in cp.collidable if plan.dynamic[i]))
     for ka in sorted(moving):
         for kb in sorted(kinds):
             if not closed_form(ka, kb):
                 return "a pair without a compiled closed form"
     return None
-
-
-def _kinds(cp, i) -> set:
-    """The shape kinds of body i: its parts' for a compound body, else its own."""
-    elements = cp.table.elements
-    if elements is not None and elements.count[i] > 0:
-        return {int(k) for k in elements.table.kind[elements.of(i)]}
-    return {int(cp.table.kind[i])}
 
 
 def jointed(plan) -> bool:

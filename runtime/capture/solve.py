@@ -267,10 +267,10 @@ def _strike(ct, y, first, end, h, resting):
 
 @kernel
 def _bounce_in_solve(ct, y, first, end, h, resting):
-    """A pair with a body joined to another moving body, and restitution: its contacts that approach faster than the resting speed within
-    the step (as `_strike` finds them) get Newton's target u+ >= -e u- in the solve, with the joints' rows
-    (approach <- u-, negative: an impact event whose impulse is the solve's). A pairwise strike is blind to the
-    joints: a chain of capsules (e = 0.5) landing in a heap of its own links gained 6 % of its energy in the
+    """A pair with a body joined to another moving body, and restitution: its contacts that approach faster than the
+    resting speed within the step (as `_strike` finds them) get Newton's target u+ >= -e u- in the solve, with the
+    joints' rows (approach <- u-, negative: an impact event whose impulse is the solve's). A pairwise strike is blind to
+    the joints: a chain of capsules (e = 0.5) landing in a heap of its own links gained 6 % of its energy in the
     dynamics plan and 258 % in the procedural (found 2026-12-07)."""
     for c in range(first, end):
         u = speed(ct, c, 0, y)
@@ -280,13 +280,13 @@ def _bounce_in_solve(ct, y, first, end, h, resting):
 
 @kernel
 def impacts(ct, y, h, resting, struck_in, held, jointed):
-    """Impacts in generations (module docstring): sweeps over the pairs, each striking (`_strike`) while one of
-    its contacts approaches faster than the resting speed, until none does or IMPACT_SWEEPS ran out (what is left
-    is resolved without restitution by the solve); a pair with a body joined to another moving body, and
-    restitution, is not struck but bounces in the solve, with the joints (`_bounce_in_solve`). Then each contact's target for the solve. After the first
-    sweep only the pairs of a body struck in this sweep or the last are looked at again (struck_in (n+1,): the
-    sweep that last struck each body): a heap strikes somewhere at nearly every step, and every sweep over all of
-    its pairs made 1000 spheres cost 13.8 times 125."""
+    """Impacts in generations (module docstring): sweeps over the pairs, each striking (`_strike`) while one of its
+    contacts approaches faster than the resting speed, until none does or IMPACT_SWEEPS ran out (what is left is
+    resolved without restitution by the solve); a pair with a body joined to another moving body, and restitution, is
+    not struck but bounces in the solve, with the joints (`_bounce_in_solve`). Then each contact's target for the solve.
+    After the first sweep only the pairs of a body struck in this sweep or the last are looked at again (struck_in
+    (n+1,): the sweep that last struck each body): a heap strikes somewhere at nearly every step, and every sweep over
+    all of its pairs made 1000 spheres cost 13.8 times 125."""
     count = ct.count[0]
     for b in range(len(struck_in)):
         struck_in[b] = -2.0

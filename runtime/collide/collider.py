@@ -35,7 +35,7 @@ from .contacts import ContactSet, set_relative
 from .events import EventLog
 from .narrow import closed_form, needs_fcl
 from .pairs import BroadPhase, is_excluded, pair_keys
-from .shapes import PLANE, SPHERE, reach
+from .shapes import PLANE, SPHERE, kinds_of, reach
 from .response import Bodies, Contacts, Joints, Response, contact_rows, row_velocity
 
 # an impact is rewound to its time when the bodies interpenetrate by more than this at the end of the step, m
@@ -563,14 +563,8 @@ class Collider:
         closed form, with a point on each side of a cylinder lying on a box; on one point it rolled off by
         itself after 0.8 s and sank to its axis, 28 mm deep, found 2026-12-07. (A scene with a mesh never gets
         here: it may not capture.)"""
-        return any(needs_fcl(ka, kb) for ka in self._kinds_of(a) for kb in self._kinds_of(b))
-
-    def _kinds_of(self, i: int) -> set:
-        """The shape kinds of body i: its parts' for a compound body, else its own."""
-        elements = self.cp.table.elements
-        if elements is not None and elements.count[i] > 0:
-            return {int(k) for k in elements.table.kind[elements.of(i)]}
-        return {int(self.cp.table.kind[i])}
+        table = self.cp.table
+        return any(needs_fcl(ka, kb) for ka in kinds_of(table, a) for kb in kinds_of(table, b))
 
     def _at_rest(self, contacts) -> bool:
         """Nothing approaching: lam = 0 solves every row (touching balls of the cradle before the strike)."""

@@ -145,3 +145,11 @@ def segment(table, i, x, R):
     """End points of the axis segment of a capsule or cylinder."""
     half = R[i][:, 2] * table.half_length[i]
     return x[i] - half, x[i] + half
+
+
+def kinds_of(table, i: int) -> set:
+    """The shape kinds of body i of a collision table: its parts' for a compound body, else its own."""
+    elements = table.elements
+    if elements is not None and elements.count[i] > 0:
+        return {int(k) for k in elements.table.kind[elements.of(i)]}
+    return {int(table.kind[i])}
