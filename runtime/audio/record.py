@@ -185,13 +185,10 @@ class Recorder:
         steps = _Steps(times, trace, self._last)
         if len(times):
             self._last = (float(times[-1]), trace[-1].copy())
-        if self.record.contacts:
-            new = events[first:] if self.seen > first else NO_EVENTS
-            self._hits(steps, [(first + k, event) for k, event in enumerate(new)
-                               if event.get("kind", "impact") != "contact"])
-            self._contacts(new, steps)
-        elif self.seen > first:  # (no sound listens to pressing pairs: only the impacts become dicts)
+        if self.seen > first:  # (only the impacts become dicts, unless a sound listens to pressing pairs)
             self._hits(steps, events.impacts_from(first))
+        if self.record.contacts:
+            self._contacts(events[first:] if self.seen > first else NO_EVENTS, steps)
 
     def _sample_start(self, sim) -> None:
         """The table's first row: the state the run starts from."""

@@ -99,6 +99,7 @@ class Collider:
         # bodies whose any impact hands over: with `jointed_strike` (Simulation sets it), those an active joint holds
         self.jointed_strike, self.strikers = False, np.zeros(self.plan.n, bool)
         self.reach = reach(cplan.table)
+        self.kinds = [kinds_of(cplan.table, i) for i in range(self.plan.n)]  # (each body's shape kinds, its parts')
         pairs = sim.compiled.model.pairs
         # the compiled step's pair of bodies (i, j), in either order
         self.pair_index = {**{(int(a), int(b)): p for p, (a, b) in enumerate(zip(pairs.a, pairs.b))},
@@ -563,8 +564,7 @@ class Collider:
         closed form, with a point on each side of a cylinder lying on a box; on one point it rolled off by
         itself after 0.8 s and sank to its axis, 28 mm deep, found 2026-12-07. (A scene with a mesh never gets
         here: it may not capture.)"""
-        table = self.cp.table
-        return any(needs_fcl(ka, kb) for ka in kinds_of(table, a) for kb in kinds_of(table, b))
+        return any(needs_fcl(ka, kb) for ka in self.kinds[a] for kb in self.kinds[b])
 
     def _at_rest(self, contacts) -> bool:
         """Nothing approaching: lam = 0 solves every row (touching balls of the cradle before the strike)."""
