@@ -8,7 +8,8 @@ Moreau-Jean):
        tunnels while it moves less than the margin it was given)
     3. the contact solve (solve.py): impacts in generations, then impulses so that v+ meets the contacts (friction
        included) and the joints' rows (joints.py), one Gauss-Seidel sweep over both after another, warm-started
-    4. x += h v+; the free rotation of w+ over h (energy-keeping, procedural/substep.py); the position pass's
+    4. x += h v+ (a body whose velocity changed smoothly: the mean, h (v + v+) / 2, `_drift`); the free rotation
+       of w+ over h (energy-keeping, procedural/substep.py); the position pass's
        pseudo-velocities move the positions only (drift); the joints projected back on their manifold as the exact
        path's semi-implicit Euler projects them (dynamics/projection.py)
     5. checks: interpenetration beyond the limit, energy created by the contacts (counted, the worst kept with
@@ -47,6 +48,10 @@ MAX_SPLIT = 8
 # solve's residual speeds (a few cm/s in a heap of boxes) bounced at 0.05 m/s, and 64 boxes still rocked at
 # 0.5 rad/s after 2.5 s (below 1.5e-3 at 0.1 m/s; at 0.2 m/s the dominoes' wave lost its steady speed)
 BOUNCE_SPEED = 0.1
+# a body whose velocity changed by at most this many times what its forces alone change it by in a step moves at the
+# mean of its velocities before and after (`_drift`): a sliding block's friction (mu g, mu <= 1 takes 2) and a rolling
+# ball's spin (5/2 mu g at its rim) are inside it, an impact (0.1 m/s and more: 10 g h at 1 ms) is not
+SMOOTH = 4.0
 # a landing contact whose warm start already holds back this fraction of its approach (of m_n |u|, the impulse
 # that stops it) is pressing, not landing (`_touchdowns`)
 LANDED = 0.05
@@ -228,14 +233,39 @@ def _check(ct, chk, y, t, depth_limit, energy_tol):
 
 
 @kernel
-def _drift(m, s, y, pseudo, moved, h):
-    """x += h (v + v~), the free rotation of w over h, then the turn h w~ (v~, w~: the position pass's)."""
+def _smooth(m, s, y, b, h, parts):
+    """Whether body b's velocity changed this step by no more than SMOOTH times what its forces alone change it by
+    (|F| h / m): a flight, a slide, a roll, a rest, and no impact (v: s.start's, before the step)."""
+    a = math.sqrt(s.force[b, 0] ** 2 + s.force[b, 1] ** 2 + s.force[b, 2] ** 2) * m.bodies.inv_mass[b]
+    dv = math.sqrt((y[b, 7] - s.start[b, 7]) ** 2 + (y[b, 8] - s.start[b, 8]) ** 2 + (y[b, 9] - s.start[b, 9]) ** 2)
+    dw = math.sqrt((y[b, 10] - s.start[b, 10]) ** 2 + (y[b, 11] - s.start[b, 11]) ** 2
+                   + (y[b, 12] - s.start[b, 12]) ** 2)
+    limit = SMOOTH * a * h
+    return dv <= limit and dw * body_reach(m.shapes, parts, b) <= limit
+
+
+@kernel
+def _drift(m, s, y, pseudo, moved, h, parts, jointed):
+    """x += h (v + v~), the free rotation of w over h, then the turn h w~ (v~, w~: the position pass's). A body whose
+    velocity changed smoothly (`_smooth`; in a scene without joints) moves at the mean of its velocities before and
+    after the step, v = (v- + v+) / 2, and turns the same: the trapezoid, exact for a constant force (a flight, a
+    slide under Coulomb friction), where moving at v+ (symplectic Euler) stops a sliding block v0 h / 2 short. An
+    impact's change is taken whole at the step's start (the scheme's impulses): averaged, a bounce lands late."""
     for b in range(len(y) - 1):
         if not m.bodies.dynamic[b]:
             continue
+        mean = not jointed and _smooth(m, s, y, b, h, parts)
         for k in range(3):
-            y[b, k] += h * (y[b, 7 + k] + (pseudo[b, 7 + k] if moved else 0.0))
+            v = y[b, 7 + k]
+            if mean:
+                # v = (v- + v+) / 2
+                v = 0.5 * (s.start[b, 7 + k] + v)
+            y[b, k] += h * (v + (pseudo[b, 7 + k] if moved else 0.0))
         free_rotation(m.bodies, b, y, s.R, s.torque, h)
+        if mean:
+            # the free rotation of w+ over h, turned back by h (w+ - w-) / 2: the turn of the mean
+            turn(y, b, 0.5 * h * (s.start[b, 10] - y[b, 10]), 0.5 * h * (s.start[b, 11] - y[b, 11]),
+                 0.5 * h * (s.start[b, 12] - y[b, 12]))
         if moved:
             turn(y, b, h * pseudo[b, 10], h * pseudo[b, 11], h * pseudo[b, 12])
 
@@ -287,7 +317,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
         evaluate_rows(m, act, s, y, table, j)
         prepare_joints(m, act, s, s.inv_inertia, jt, y, h)
         _mark_held(m, act, sw.held)
-    impacts(ct, y, h, resting, sw.struck_in, sw.held, jointed)
+    impacts(ct, y, h, resting, sw.struck_in, sw.held, jointed, s.start)
     for _ in range(VELOCITY_SWEEPS):
         if jointed:
             sweep_joints(m, act, s, s.inv_inertia, jt, y)
@@ -305,7 +335,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
             if jointed:
                 close_joints(m, act, s, s.inv_inertia, jt, pseudo)
             separate(ct, pseudo, y, h)
-    _drift(m, s, y, pseudo, moved, h)
+    _drift(m, s, y, pseudo, moved, h, parts, jointed)
     if last:
         place_kinematic(m.kinematic, table, j + grid, y)
     if jointed:

@@ -241,11 +241,25 @@ def _strikes(ct, c, u, h, resting):
 
 
 @kernel
-def _strike(ct, y, first, end, h, resting):
+def _rebound(ct, c, u, h, start):
+    """The normal speed contact c leaves its first impact of the step with, at normal speed u now (< 0): Newton's
+    restitution at the impact's time tau (the gap closed at u: tau = gap / |u|), then the forces' for the rest of
+    the step, u+ = -e u(tau) + a (h - tau), u(tau) = u - a (h - tau), a h = the kick's change of the normal speed
+    (ct.before less its speed at the step's start, `start`'s velocities). Struck at u, the speed of the step's end,
+    a ball bounced (1 + e) g (h - tau) too fast and its impulse was as much too large (1.2 times the bound of
+    test_capture_landing at 1 ms once the flights were exact). Not below 0: the contact stops."""
+    kick = ct.before[c, 0] - speed(ct, c, 0, start)
+    rest = h - min(h, ct.push[c] / -u)
+    # u+ = -e u + (1 + e) a (h - tau)
+    return max(0.0, -ct.e[c] * u + (1.0 + ct.e[c]) * kick * rest / h)
+
+
+@kernel
+def _strike(ct, y, first, end, h, resting, start):
     """One generation's impact of the pair whose contacts are first..end-1, if one of them approaches faster than
     the resting speed within the step: its points together (a face landing on a face is one impact, not four that
-    turn it), targets u+ = -e u- from their velocities now, ct.hit grown, each kept >= its value before
-    (PGS on the pair's points). Returns whether it struck."""
+    turn it), targets u+ = -e u- from their velocities now (a contact's first impact of the step: at its time,
+    `_rebound`), ct.hit grown, each kept >= its value before (PGS on the pair's points). Returns whether it struck."""
     approaching = False
     for c in range(first, end):
         u = speed(ct, c, 0, y)
@@ -253,7 +267,9 @@ def _strike(ct, y, first, end, h, resting):
         struck = _strikes(ct, c, u, h, resting)
         approaching = approaching or struck
         # its target u+ = -e u- (ct.bounce), or -1: not in this generation
-        ct.bounce[c] = -ct.e[c] * u if (u < 0.0 and closes) else -1.0
+        ct.bounce[c] = -1.0
+        if u < 0.0 and closes:
+            ct.bounce[c] = _rebound(ct, c, u, h, start) if ct.hit[c] == 0.0 else -ct.e[c] * u
         ct.base[c] = ct.hit[c]
         if struck:
             ct.approach[c] = max(ct.approach[c], -u)
@@ -285,14 +301,14 @@ def _bounce_in_solve(ct, y, first, end, h, resting):
 
 
 @kernel
-def impacts(ct, y, h, resting, struck_in, held, jointed):
+def impacts(ct, y, h, resting, struck_in, held, jointed, start):
     """Impacts in generations (module docstring): sweeps over the pairs, each striking (`_strike`) while one of its
     contacts approaches faster than the resting speed, until none does or IMPACT_SWEEPS ran out (what is left is
     resolved without restitution by the solve); a pair with a body joined to another moving body, and restitution, is
     not struck but bounces in the solve, with the joints (`_bounce_in_solve`). Then each contact's target for the solve.
     After the first sweep only the pairs of a body struck in this sweep or the last are looked at again (struck_in
     (n+1,): the sweep that last struck each body): a heap strikes somewhere at nearly every step, and every sweep over
-    all of its pairs made 1000 spheres cost 13.8 times 125."""
+    all of its pairs made 1000 spheres cost 13.8 times 125. start: the state at the step's start (`_rebound`)."""
     count = ct.count[0]
     for b in range(len(struck_in)):
         struck_in[b] = -2.0
@@ -308,7 +324,7 @@ def impacts(ct, y, h, resting, struck_in, held, jointed):
                 if generation == 0:
                     _bounce_in_solve(ct, y, c, end, h, resting)
             elif generation == 0 or max(struck_in[a], struck_in[b]) >= generation - 1:
-                if _strike(ct, y, c, end, h, resting):
+                if _strike(ct, y, c, end, h, resting, start):
                     struck = True
                     struck_in[a], struck_in[b] = generation, generation
             c = end

@@ -164,10 +164,14 @@ def test_the_wave_runs_at_a_constant_speed():
     _, _, _, first = dominoes()
     speed = SPACING / np.diff(first)
     # the wave starts slow (0.55 m/s between the first two pairs) and speeds up over about ten dominoes; over the
-    # last eight pairs it runs at 1.41 m/s = 1.43 sqrt(g H) (measured 1.39 to 1.42 m/s)
-    steady = speed[-8:]
-    assert np.abs(steady / steady.mean() - 1).max() < 0.02, speed
-    assert 1.2 < steady.mean() / math.sqrt(G * HEIGHT) < 1.7
+    # last nine it runs at a constant speed: their first impacts on a line in time, its speed 1.31 m/s = 1.32
+    # sqrt(g H), each impact within 0.8 ms of it. The line, not each pair's speed: the step's resolution and the
+    # wave's own jitter move single impacts by up to 1.07 ms (measured at steps of 1, 0.5 and 0.25 ms, before and
+    # after the trapezoid drift of 2026-12-07: 0.11 to 1.07 ms), 2.8 % of the 38 ms between two impacts
+    steady = first[-9:]
+    line = np.polyfit(np.arange(9), steady, 1)
+    assert np.abs(steady - np.polyval(line, np.arange(9))).max() < 1.5e-3, steady
+    assert 1.2 < SPACING / line[0] / math.sqrt(G * HEIGHT) < 1.7
     assert np.all(np.diff(speed[:7]) > 0)
 
 
