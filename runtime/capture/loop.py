@@ -8,6 +8,7 @@ Moreau-Jean):
        tunnels while it moves less than the margin it was given)
     3. the contact solve (solve.py): impacts in generations, then impulses so that v+ meets the contacts (friction
        included) and the joints' rows (joints.py), one Gauss-Seidel sweep over both after another, warm-started
+       (the last step's impulses applied after the impacts, which are struck from the velocities of the forces)
     4. x += h v+ (a body whose velocity changed smoothly: the mean, h (v + v+) / 2, `_drift`); the free rotation
        of w+ over h (energy-keeping, procedural/substep.py); the position pass's
        pseudo-velocities move the positions only (drift); the joints projected back on their manifold as the exact
@@ -35,8 +36,9 @@ from .broad import body_reach, find_pairs, travel
 from .compound import Found, fold, material_of, place, pose, posed_contacts
 from .data import IMPACT, PRESSING
 from .narrow import pair_contacts
-from .joints import close_joints, prepare_joints, sweep_joints
-from .solve import POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, keep_old, prepare, separate, sweep, work
+from .joints import close_joints, prepare_joints, sweep_joints, warm_start_joints
+from .solve import (POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, keep_old, prepare, separate, sweep,
+                    warm_start, work)
 
 GROW, DRAIN = 4, 5
 # a step whose bodies in contact turn fast is taken in parts (`_split`): the farthest point of a body that is not
@@ -315,9 +317,12 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
     jointed = len(act.rows) > 0
     if jointed:
         evaluate_rows(m, act, s, y, table, j)
-        prepare_joints(m, act, s, s.inv_inertia, jt, y, h)
+        prepare_joints(m, act, s, s.inv_inertia, jt, h)
         _mark_held(m, act, sw.held)
     impacts(ct, y, h, resting, sw.struck_in, sw.held, jointed, s.start)
+    if jointed:
+        warm_start_joints(m, act, s, s.inv_inertia, jt, y)
+    warm_start(ct, y)
     for _ in range(VELOCITY_SWEEPS):
         if jointed:
             sweep_joints(m, act, s, s.inv_inertia, jt, y)

@@ -16,6 +16,9 @@ Impacts come first, in generations (`impacts`): while a contact approaches faste
 the two-body impulse of Newton's restitution, p = -(1 + e) m_n u_n, and what that sets in motion is seen by the
 next contacts of the sweep (a row of balls passes the striker's speed down the row, as Newton's cradle does; one
 simultaneous solve would send the row off together). Each such impulse keeps or loses kinetic energy (e <= 1).
+The impacts see the velocities the forces and the earlier generations gave, not the warm start, which is applied
+after them (`warm_start`): a guess of the sustained impulses that the sweeps may take back must not set off a
+bounce that they cannot.
 
 Each row is prepared once per step (`prepare`), as a sequential-impulse solver keeps it: its Jacobian
 (d, r_a x d, r_b x d) and what a unit impulse along it does to each body (d / m, I^-1 (r x d); zero for a body
@@ -120,7 +123,8 @@ def push(ct, c, row, y, p):
 @kernel
 def prepare(bodies, invI, ct, y, n, h):
     """Rows of every contact (module docstring): tangents, Jacobians, masses, velocities before, the normal's
-    target; then the last step's impulses of the same features applied (warm start)."""
+    target; then the last step's impulses of the same features in ct.lam (the warm start, applied after the
+    impacts: `warm_start`)."""
     count = ct.count[0]
     for c in range(count):
         a, b = ct.a[c], ct.b[c]
@@ -159,6 +163,17 @@ def prepare(bodies, invI, ct, y, n, h):
         ct.acc[c] = ct.old_acc[old] if old >= 0 else 0.0
         for row in range(3):
             ct.lam[c, row] = ct.old_lam[old, row] if old >= 0 else 0.0
+
+
+@kernel
+def warm_start(ct, y):
+    """The warm start's impulses (ct.lam, from `prepare`) applied, after the impacts (`impacts`). Struck from
+    velocities with the warm start in them, a sphere wedged in a tube was pushed into the wall by its neighbour's
+    last impulse, bounced off it (e = 0.7), and kept the bounce when the sweeps took that impulse back: a column of
+    12 steel spheres in a tube of planes gained 0.38 J, 3.5 % of what its fall makes available, at 4 ms; 1e-4 J
+    with the warm start after the impacts (found 2026-12-07)."""
+    for c in range(ct.count[0]):
+        for row in range(3):
             push(ct, c, row, y, ct.lam[c, row])
 
 
@@ -235,7 +250,7 @@ def _old_run(ct, pair):
 def _strikes(ct, c, u, h, resting):
     """Whether contact c, at normal speed u now, is an impact: it approaches faster than the resting speed and
     closes its gap within the step. A contact that pressed in the last step (its warm start lam_n > 0) strikes only
-    when this step's impulses made it approach faster than before them: the residual speeds of a resting stack's
+    when this step's impacts made it approach faster than before them: the residual speeds of a resting stack's
     solve are not impacts (bouncing them fed the residual back: a pyramid of 28 boxes rocked at 0.5 rad/s)."""
     return u < -resting and u * h <= -ct.push[c] and (ct.lam[c, 0] <= 0.0 or u < ct.before[c, 0] - resting)
 
