@@ -4,8 +4,8 @@ column must settle without gaining energy, at rest, inside the tube and nowhere 
 
 Found 2026-12-07: the impacts were struck from velocities with the warm start in them, so a sphere pushed into the
 wall by its neighbour's last impulse bounced off it, and kept the bounce when the sweeps took that impulse back:
-12 steel spheres gained 3.5 % of the energy their fall makes available at 4 ms, 5 % at 0.5 ms, and never came to
-rest (capture/solve.py `warm_start`)."""
+12 spheres of 2000 kg/m3 (e = 0.3) gained 3.5 % of the energy their fall makes available at 4 ms, and 15 steel
+ones (e = 0.7) 5 % at 0.5 ms and 9.9 % at 2 ms (capture/solve.py `warm_start`)."""
 from __future__ import annotations
 
 import numpy as np
