@@ -248,11 +248,12 @@ def _smooth(m, s, y, b, h, parts):
 
 @kernel
 def _drift(m, s, y, pseudo, moved, h, parts, jointed):
-    """x += h (v + v~), the free rotation of w over h, then the turn h w~ (v~, w~: the position pass's). A body whose
-    velocity changed smoothly (`_smooth`; in a scene without joints) moves at the mean of its velocities before and
-    after the step, v = (v- + v+) / 2, and turns the same: the trapezoid, exact for a constant force (a flight, a
-    slide under Coulomb friction), where moving at v+ (symplectic Euler) stops a sliding block v0 h / 2 short. An
-    impact's change is taken whole at the step's start (the scheme's impulses): averaged, a bounce lands late."""
+    """x += h (v+ + v~), the free rotation of w+ over h, then the turn h w~ (v~, w~: the position pass's). A body
+    whose velocity changed smoothly (`_smooth`; in a scene without joints) moves at the mean of its velocities at
+    the step's start (v, s.start's) and after it, (v + v+) / 2, and turns the same: the trapezoid, exact for a
+    constant force (a flight, a slide under Coulomb friction), where moving at v+ (symplectic Euler) stops a
+    sliding block v0 h / 2 short. An impact's change is taken whole at the step's start (the scheme's impulses):
+    averaged, a bounce lands late."""
     for b in range(len(y) - 1):
         if not m.bodies.dynamic[b]:
             continue
@@ -260,12 +261,12 @@ def _drift(m, s, y, pseudo, moved, h, parts, jointed):
         for k in range(3):
             v = y[b, 7 + k]
             if mean:
-                # v = (v- + v+) / 2
+                # (v + v+) / 2
                 v = 0.5 * (s.start[b, 7 + k] + v)
             y[b, k] += h * (v + (pseudo[b, 7 + k] if moved else 0.0))
         free_rotation(m.bodies, b, y, s.R, s.torque, h)
         if mean:
-            # the free rotation of w+ over h, turned back by h (w+ - w-) / 2: the turn of the mean
+            # the free rotation of w+ over h, turned back by h (w+ - w) / 2: the turn of the mean
             turn(y, b, 0.5 * h * (s.start[b, 10] - y[b, 10]), 0.5 * h * (s.start[b, 11] - y[b, 11]),
                  0.5 * h * (s.start[b, 12] - y[b, 12]))
         if moved:

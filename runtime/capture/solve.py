@@ -262,8 +262,8 @@ def _rebound(ct, c, u, h, start):
     restitution at the impact's time tau (the gap closed at u: tau = gap / |u|), then the forces' for the rest of
     the step, u+ = -e u(tau) + a (h - tau), u(tau) = u - a (h - tau), a h = the kick's change of the normal speed
     (ct.before less its speed at the step's start, `start`'s velocities). Struck at u, the speed of the step's end,
-    a ball bounced (1 + e) g (h - tau) too fast and its impulse was as much too large (1.2 times the bound of
-    test_capture_landing at 1 ms once the flights were exact). Not below 0: the contact stops."""
+    a ball bounced (1 + e) g (h - tau) too fast and its impulse was as much too large (rubber balls at 1 ms: up to
+    1.4 % off; at their time, 0.025 %: tests/runtime/test_capture_landing.py). Not below 0: the contact stops."""
     kick = ct.before[c, 0] - speed(ct, c, 0, start)
     rest = h - min(h, ct.push[c] / -u)
     # u+ = -e u + (1 + e) a (h - tau)

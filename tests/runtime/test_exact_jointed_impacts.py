@@ -26,9 +26,8 @@ def chain_scene(links: int, radius: float, length: float, density: float, tilt_d
     bodies = "".join(f"  body c{i} capsule {{ radius {radius} m  length {length} m  material m  "
                      f"at ({at(pitch * (i + 0.5))[0]:.6f}, {at(pitch * (i + 0.5))[1]:.6f}, 0) m  "
                      f"orient (90, 0, {-tilt_deg}) }}\n" for i in range(links))
-    joints = "".join(f"  constraint j{i} point(c{i} @ world ({at(pitch * (i + 1))[0]:.6f}, {at(pitch * (i + 1))[1]:.6f}, 0) m, "
-                     f"c{i + 1} @ world ({at(pitch * (i + 1))[0]:.6f}, {at(pitch * (i + 1))[1]:.6f}, 0) m)\n"
-                     for i in range(links - 1))
+    hinge = lambda i: "world ({:.6f}, {:.6f}, 0) m".format(*at(pitch * (i + 1)))  # noqa: E731 (joint i's point)
+    joints = "".join(f"  constraint j{i} point(c{i} @ {hinge(i)}, c{i + 1} @ {hinge(i)})\n" for i in range(links - 1))
     return ("scene chain {\n  time 0 s .. 2 s\n  frames 100 Hz\n  gravity (0, -9.81, 0) m/s2\n"
             "  solver dynamics { integrator rk4  step 1 ms }\n"
             f"  material m {{ density {density} kg/m3  friction 0.5  restitution {restitution} }}\n"
