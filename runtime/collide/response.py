@@ -188,9 +188,10 @@ class Response:
 
     def impacts(self, resting_speed: float) -> None:
         """Generations of impacts with restitution (module docstring). A generation whose impulses gave kinetic
-        energy is taken again without restitution (`_kinetic`), unless something driven may have given it."""
+        energy is taken again without restitution (`_kinetic`), unless something driven may have given it (`_driven`)."""
         c, b = self.c, self.bodies
-        driven = self._driven()
+        # (the kinetic energy is watched where nothing driven may give it: each body's inertia inverted once)
+        inertia = None if self._driven() else _inertia(b)
         for _ in range(MAX_GENERATIONS):
             u = self.velocity()
             hit = u[: len(c)] < -resting_speed
@@ -199,9 +200,12 @@ class Response:
             self.outcome.impact |= hit
             # an impact set off by another (ball 2 of the cradle) approached at its generation's speed
             np.maximum(self.outcome.approach, np.where(hit, -u[: len(c)], -np.inf), out=self.outcome.approach)
-            v, w, impulse, energy = b.v.copy(), b.w.copy(), self.outcome.impulse.copy(), _kinetic(b)
+            if inertia is None:
+                self._solve(hit, -c.e * u[: len(c)], friction=True)
+                continue
+            v, w, impulse, energy = b.v.copy(), b.w.copy(), self.outcome.impulse.copy(), _kinetic(b, inertia)
             self._solve(hit, -c.e * u[: len(c)], friction=True)
-            if not driven and _kinetic(b) > energy * (1.0 + ENERGY_RTOL):
+            if _kinetic(b, inertia) > energy * (1.0 + ENERGY_RTOL):
                 b.v[:], b.w[:], self.outcome.impulse[:] = v, w, impulse
                 self._solve(hit, np.zeros(len(c)), friction=True)
 
@@ -267,12 +271,18 @@ class Response:
             apply_impulses(self.joints.J[joint_rows], b.slot(self.joints.rb[joint_rows]), lam_j, b, b.v, b.w)
 
 
-def _kinetic(bodies: Bodies) -> float:
-    """1/2 m v^2 + 1/2 w . I w over the bodies impulses move (I: the inverse of their world inverse inertia)."""
+def _inertia(bodies: Bodies) -> tuple:
+    """(the bodies impulses move, their world inertias: the inverses of their world inverse inertias)."""
     moving = bodies.dynamic & (bodies.inv_mass > 0)
+    return moving, np.linalg.inv(bodies.inv_inertia[moving])
+
+
+def _kinetic(bodies: Bodies, inertia: tuple) -> float:
+    """1/2 m v^2 + 1/2 w . I w over the bodies impulses move (`_inertia`)."""
+    moving, I = inertia
     v, w = bodies.v[moving], bodies.w[moving]
-    spin = np.linalg.solve(bodies.inv_inertia[moving], w[..., None])[..., 0]
-    return 0.5 * float((np.einsum("ki,ki->k", v, v) / bodies.inv_mass[moving]).sum() + np.einsum("ki,ki->", w, spin))
+    spin = np.einsum("kij,kj,ki->", I, w, w)
+    return 0.5 * (float((np.einsum("ki,ki->k", v, v) / bodies.inv_mass[moving]).sum()) + float(spin))
 
 
 def schur(Jj, rbj, Jc, rbc, bodies: Bodies, r_j, uc):
