@@ -99,6 +99,8 @@ class CaptureStage:
         self.sweep = D.sweep(order, planes, n, cp.always_excluded, 8 * len(order) + 64)
         self.contacts = D.contacts(8 * len(order) + 64)
         self.checks = D.checks()
+        from .islands import DIRECT_ROWS
+        self.islands = D.islands(n, DIRECT_ROWS)
         self.joints = D.joint_rows(len(sim.compiled.model.constraints.row_instance))
         self.events = D.events(8192)
         self.pseudo = np.zeros((n + 1, 13))
@@ -175,7 +177,7 @@ class CaptureStage:
                 "steps_too_deep": int(c[0]), "depth_limit": DEPTH_LIMIT,
                 "energy_created": float(w[4]), "energy_created_time": float(w[5]),
                 "energy_created_pair": [names[int(w[6])], names[int(w[7])]] if w[4] > 0 else [],
-                "steps_creating_energy": int(c[1])}
+                "steps_creating_energy": int(c[1]), "islands_solved_whole": int(c[4])}
 
 
 def can_bounce(cp) -> bool:
@@ -261,7 +263,8 @@ class CaptureStepper:
             part = frames._replace(**{name: getattr(frames, name)[first:] for name in _PER_FRAME})
             taken = self._run(c.model, act, c.scratch, st.contacts, st.sweep, st.joints, st.checks, st.events, st.pseudo,
                               st.held, st.materials, y, table[done * self.grid:], hs, total - done, self.grid, later, part,
-                              status, self.resting, DEPTH_LIMIT, self.energy_tol, st.parts, st.poses, self.touch)
+                              status, self.resting, DEPTH_LIMIT, self.energy_tol, st.parts, st.poses, self.touch,
+                              st.islands)
             st.drain()
             first += int(np.count_nonzero(later <= taken))
             done += taken

@@ -23,7 +23,7 @@ import math
 
 from ..core.jit import kernel
 from ..core.vec import add3, cross3, dot3, rotate, rotate_t, row3, scale3, sub3
-from .common import clamp, col3, emit, plane_of, point_box, segment, sign, unit3
+from .common import clamp, clip_line, col3, emit, plane_of, point_box, segment, sign, unit3
 
 EDGE_PREFERENCE = 1e-3
 # edge-edge axes of nearly parallel edges (|a_i x b_j| below this) are skipped: a face axis covers them
@@ -69,7 +69,11 @@ def sphere_box(shapes, a, b, y, R, sink):
 
 @kernel
 def capsule_box(shapes, a, b, y, R, sink):
-    """The two end spheres (features 0, 1), plus the axis point nearest the box when inside the segment (2)."""
+    """The two end spheres (features 0, 1); then, where the axis point nearest the box lies over a face of it, the
+    ends of the axis's part over that face (features 3, 4; the axis's distance to the face is linear along it, so
+    its ends hold the least), else that nearest point when inside the segment (2). A capsule lying across a box's
+    face rests on the face's two sides: held at its one nearest point, it rocked about it, and a 10 kg capsule on a
+    0.1 kg cube sank 14 mm into it in 0.5 s (found 2026-12-07)."""
     r = shapes.radius[a]
     s0, s1 = segment(shapes, a, y, R)
     k = 0
@@ -78,10 +82,44 @@ def capsule_box(shapes, a, b, y, R, sink):
         dist, surface, n = point_box(end, shapes, b, y, R)
         k = emit(sink, k, scale3(0.5, add3(sub3(end, scale3(r, n)), surface)), n, r - dist, e)
     t = nearest_along(s0, s1, shapes, b, y, R)
+    p = add3(s0, scale3(t, sub3(s1, s0)))
+    dist, surface, n = point_box(p, shapes, b, y, R)
+    face = _face_of(R, b, n)
+    if dist > 0.0 and face >= 0:
+        return _over_face(shapes, b, y, R, sink, k, s0, s1, r, n, face)
     if 0.01 < t < 0.99:
-        p = add3(s0, scale3(t, sub3(s1, s0)))
-        dist, surface, n = point_box(p, shapes, b, y, R)
         k = emit(sink, k, scale3(0.5, add3(sub3(p, scale3(r, n)), surface)), n, r - dist, 2)
+    return k
+
+
+@kernel
+def _face_of(R, b, n):
+    """k where the unit n is box b's face normal +-b_k, else -1 (an edge's or a corner's direction)."""
+    for k in range(3):
+        if abs(dot3(col3(R, b, k), n)) > 1.0 - 1e-9:
+            return k
+    return -1
+
+
+@kernel
+def _over_face(shapes, b, y, R, sink, k, s0, s1, r, n, face):
+    """The contacts of the capsule axis s0..s1 (radius r) over box b's face along the outward unit n (face: its
+    axis): the ends of the axis's part over the face's rectangle that are not the axis's own ends (those are the end
+    spheres'), each at depth r less its height over the face, its point halfway between the capsule's surface and
+    the face. Returns the pair's count so far."""
+    f = add3(row3(y, b, 0), scale3(shapes.half[b, face], n))
+    t0, t1, c0, c1 = clip_line(shapes, b, R, face, f, s0, s1)
+    if t0 > t1:
+        return k
+    for e in range(2):
+        t = t0 if e == 0 else t1
+        if t <= 1e-9 or t >= 1.0 - 1e-9:
+            continue
+        q = add3(s0, scale3(t, sub3(s1, s0)))
+        height = dot3(sub3(q, f), n)
+        # midway between the capsule's surface q - r n and the face's point q - height n
+        point = sub3(q, scale3(0.5 * (r + height), n))
+        k = emit(sink, k, point, n, r - height, 3 + e)
     return k
 
 

@@ -150,3 +150,27 @@ def segment_segment(p1, q1, p2, q2):
             elif t > 1.0:
                 s, t = clamp((b - c) / a, 0.0, 1.0), 1.0
     return add3(p1, scale3(s, d1)), add3(p2, scale3(t, d2))
+
+
+@kernel
+def clip_line(shapes, b, R, k, f, p0, p1):
+    """The part t0..t1 of p0 + t (p1 - p0), t in [0, 1], over the rectangle of box b's face k (centre f), and the
+    side (2 q + 0 for +b_j, 1 for -b_j, j = k + 1 + q) that cut each end (-1: not cut); t0 > t1: none of it.
+    Liang-Barsky: side s (sign g) keeps g (a0 + t (a1 - a0)) <= h."""
+    t0, t1, c0, c1 = 0.0, 1.0, -1, -1
+    for q in range(2):
+        j = (k + 1 + q) % 3
+        axis, h = col3(R, b, j), shapes.half[b, j]
+        a0, a1 = dot3(sub3(p0, f), axis), dot3(sub3(p1, f), axis)
+        for s in range(2):
+            g = 1.0 - 2.0 * s
+            v, dv = g * a0 - h, g * (a1 - a0)
+            if dv == 0.0:
+                if v > 0.0:
+                    return 1.0, 0.0, -1, -1
+            elif dv > 0.0:
+                if -v / dv < t1:
+                    t1, c1 = -v / dv, 2 * q + s
+            elif -v / dv > t0:
+                t0, c0 = -v / dv, 2 * q + s
+    return t0, t1, c0, c1

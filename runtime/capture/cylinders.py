@@ -33,8 +33,8 @@ import math
 from ..core.jit import kernel
 from ..core.vec import add3, cross3, dot3, norm3, row3, scale3, sub3
 from .boxes import corner, toward
-from .common import (UP, clamp, closest_on_segment, col3, emit, perpendicular, segment, segment_segment, sign,
-                     unit3)
+from .common import (UP, clamp, clip_line, closest_on_segment, col3, emit, perpendicular, segment, segment_segment,
+                     sign, unit3)
 
 PREFERENCE = 1e-3
 # crosses of nearly parallel directions (|b_j x u| below this) are skipped: `across_edge` covers them
@@ -204,30 +204,6 @@ def inside_face(shapes, b, R, k, f, p):
     v = sub3(p, f)
     return (abs(dot3(v, col3(R, b, (k + 1) % 3))) <= shapes.half[b, (k + 1) % 3]
             and abs(dot3(v, col3(R, b, (k + 2) % 3))) <= shapes.half[b, (k + 2) % 3])
-
-
-@kernel
-def clip_line(shapes, b, R, k, f, p0, p1):
-    """The part t0..t1 of p0 + t (p1 - p0), t in [0, 1], over the rectangle of box b's face k (centre f), and the
-    side (2 q + 0 for +b_j, 1 for -b_j, j = k + 1 + q) that cut each end (-1: not cut); t0 > t1: none of it.
-    Liang-Barsky: side s (sign g) keeps g (a0 + t (a1 - a0)) <= h."""
-    t0, t1, c0, c1 = 0.0, 1.0, -1, -1
-    for q in range(2):
-        j = (k + 1 + q) % 3
-        axis, h = col3(R, b, j), shapes.half[b, j]
-        a0, a1 = dot3(sub3(p0, f), axis), dot3(sub3(p1, f), axis)
-        for s in range(2):
-            g = 1.0 - 2.0 * s
-            v, dv = g * a0 - h, g * (a1 - a0)
-            if dv == 0.0:
-                if v > 0.0:
-                    return 1.0, 0.0, -1, -1
-            elif dv > 0.0:
-                if -v / dv < t1:
-                    t1, c1 = -v / dv, 2 * q + s
-            elif -v / dv > t0:
-                t0, c0 = -v / dv, 2 * q + s
-    return t0, t1, c0, c1
 
 
 @kernel

@@ -21,7 +21,8 @@ the Python side when a step finds more than they hold (the step is then taken ag
                in its order (each pair's consecutive); runs (T,4) an open-addressing table (T a power of two
                over 2C) of the last step's pairs: [pair key, first, end, stamp]; old_used (C,) whether this
                step's contacts took an old one's impulses already; match (C,) the old contact whose impulses
-               each took (-1: none)
+               each took (-1: none); group (C,) each contact's island, member (C,) the contacts by island,
+               kept (C,3) its island's impulses kept (islands.py)
     Sweep      order (c,) the collidable bodies that are not planes; planes (p,);
                box (n+1,6) each body's world box [lo, hi] grown by its reach over the step; the grid (broad.py):
                cell (n+1,4) each body's cell (x, y, z) and bucket (-1: not in the grid), start (B+1,) where
@@ -34,8 +35,11 @@ the Python side when a step finds more than they hold (the step is then taken ag
                joins each body to another moving body (valid while the scene has joints: loop.py `_mark_held`)
     Checks     worst (8,) float: [0] deepest interpenetration (m), [1] its time, [2] its body a, [3] b,
                [4] largest energy a step's contact impulses created (J), [5] its time, [6] a, [7] b;
-               counts (4,) int: [0] steps that found interpenetration over the limit, [1] steps whose contact
-               impulses created energy over the tolerance, [2] contacts solved (sum over steps), [3] steps
+               counts (5,) int: [0] steps that found interpenetration over the limit, [1] steps whose contact
+               impulses created energy over the tolerance, [2] contacts solved (sum over steps), [3] steps,
+               [4] islands solved whole (islands.py; sum over steps)
+    Islands    parent (n+1,), first (n+2,), fill (n+1,) int; rows (R,) int, dense (R,R), rhs (R,); y (n+1,13) an
+               island's velocities kept: islands.py
 """
 from __future__ import annotations
 
@@ -47,10 +51,12 @@ import numpy as np
 FEATURES = 1 << 24
 
 Contacts = namedtuple("Contacts", "count a b point normal depth feature key jac turn inv mass mu bounce lam push "
-                                  "before acc old_key old_lam old_acc hit e base approach old_point old_used match runs")
+                                  "before acc old_key old_lam old_acc hit e base approach old_point old_used match runs group "
+                                  "member kept")
 Sweep = namedtuple("Sweep", "order planes box excluded pairs count work struck_in cell start slots fill sorted_box "
                              "frame held")
 Checks = namedtuple("Checks", "worst counts")
+Islands = namedtuple("Islands", "parent first fill rows dense rhs y")
 # the joints' rows (joints.py), by global row: lam (M,) impulse of the last step, mass (M,), target (M,) velocity
 JointRows = namedtuple("JointRows", "lam mass target")
 # events the step writes: one row per pair and impact, or per pair pressing at a frame
@@ -70,7 +76,7 @@ def contacts(capacity: int) -> Contacts:
     # (count[3] -1: no index of last step's contacts yet; every entry of runs is free)
     return Contacts(np.array([0, 0, 0, -1], np.int64), i(), i(), v(), v(), f(), i(), i(), np.zeros((c, 3, 9)), np.zeros((c, 3, 6)),
                     np.zeros((c, 2)), v(), f(), f(), v(), f(), v(), f(), i(), v(), f(), f(), f(), f(), f(), v(), i(),
-                    i(), np.zeros((1 << (2 * c - 1).bit_length(), 4), np.int64))
+                    i(), np.zeros((1 << (2 * c - 1).bit_length(), 4), np.int64), i(), i(), v())
 
 
 def grown(old: Contacts, capacity: int) -> Contacts:
@@ -99,7 +105,12 @@ def joint_rows(rows: int) -> JointRows:
 
 
 def checks() -> Checks:
-    return Checks(np.zeros(8), np.zeros(4, np.int64))
+    return Checks(np.zeros(8), np.zeros(5, np.int64))
+
+
+def islands(n: int, rows: int) -> Islands:
+    i = (lambda size: np.zeros(size, np.int64))
+    return Islands(i(n + 1), i(n + 2), i(n + 1), i(rows), np.zeros((rows, rows)), np.zeros(rows), np.zeros((n + 1, 13)))
 
 
 def events(capacity: int) -> Events:

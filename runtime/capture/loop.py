@@ -35,6 +35,7 @@ from ..core.model import SHAPE_SPHERE
 from .broad import body_reach, find_pairs, travel
 from .compound import Found, fold, material_of, place, pose, posed_contacts
 from .data import IMPACT, PRESSING
+from .islands import separate_islands, solve_islands
 from .narrow import pair_contacts
 from .joints import close_joints, prepare_joints, sweep_joints, warm_start_joints
 from .solve import (POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, keep_old, prepare, separate, sweep,
@@ -291,7 +292,7 @@ def _split(m, ct, y, h, parts):
 
 @kernel
 def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h, resting, depth_limit, energy_tol,
-                 since, last, parts, poses, touch):
+                 since, last, parts, poses, touch, isl):
     """One step of h from grid row j, `since` s after its time (a part of a step taken in parts; the kinematic
     bodies placed at row j + grid after the `last` part) (module docstring). Returns False when the buffers were too
     small (y is then as it was at the step's start). parts, poses: the compound bodies (compound.py); touch: the
@@ -328,6 +329,8 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
         if jointed:
             sweep_joints(m, act, s, s.inv_inertia, jt, y)
         sweep(ct, y)
+    if not jointed:
+        chk.counts[4] += solve_islands(m.bodies.dynamic, ct, y, isl)
     _check(ct, chk, y, t, depth_limit, energy_tol)
     for c in range(found):
         ct.acc[c] += ct.lam[c, 0] + ct.hit[c]
@@ -341,6 +344,8 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
             if jointed:
                 close_joints(m, act, s, s.inv_inertia, jt, pseudo)
             separate(ct, pseudo, y, h)
+        if not jointed:
+            chk.counts[4] += separate_islands(ct, pseudo, y, h, isl)
     _drift(m, s, y, pseudo, moved, h, parts, jointed)
     if last:
         place_kinematic(m.kinematic, table, j + grid, y)
@@ -363,7 +368,7 @@ def _record(m, act, s, y, table, j, frames, f):
 
 @entry
 def run(m, act, s, ct, sw, jt, chk, ev, pseudo, held, mats, y, table, h, steps, grid, frame_step, frames, status,
-        resting, depth_limit, energy_tol, parts, poses, touch):
+        resting, depth_limit, energy_tol, parts, poses, touch, isl):
     """Advance y by `steps` steps of h (module docstring); frames recorded at frame_step (steps counted from the
     call's start, 0: before the first). Returns the steps taken; status (4,) <- (code, step, body, 0). parts (read
     only) and poses (scratch): the compound bodies (compound.py; a scene without any: every count 0); touch: the
@@ -380,7 +385,8 @@ def run(m, act, s, ct, sw, jt, chk, ev, pseudo, held, mats, y, table, h, steps, 
         grown = True
         for piece in range(pieces):
             grown = capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid, h / pieces, resting,
-                                 depth_limit, energy_tol, piece * h / pieces, piece == pieces - 1, parts, poses, touch)
+                                 depth_limit, energy_tol, piece * h / pieces, piece == pieces - 1, parts, poses, touch,
+                                 isl)
             if not grown:
                 break
         if not grown:

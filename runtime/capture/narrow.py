@@ -12,7 +12,7 @@ Contact k of the pair goes to slot first + k of
     normal (C,3)   unit, from b toward a: an impulse +j n on a and -j n on b pushes them apart
     depth (C,)     penetration, m (negative: a gap)
     feature (C,)   int64, which feature made the point: the same while the same features touch, unique in the pair
-                   (a box's corner; a capsule's end 0, 1, its nearest axis point 2; a clipped vertex: boxes.py;
+                   (a box's corner; a capsule's end 0, 1, its nearest axis point 2 or the ends of its axis over a box's face 3, 4; a clipped vertex: boxes.py;
                    a rim point, clipped line end or box corner of a cylinder on a box, a rim point or capsule
                    end of a cylinder on a cylinder or capsule: cylinders.py)
 

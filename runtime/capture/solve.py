@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 
-from ..core.jit import kernel
+from ..core.jit import inlined, kernel
 from ..core.vec import cross3, dot3, rotate, scale3, sub3
 from .data import FEATURES
 
@@ -394,36 +394,42 @@ def _store(y, a, b, va, wa, vb, wb):
 
 @kernel
 def sweep(ct, y):
-    """One sweep of projected Gauss-Seidel over the contacts: friction (no slip, within Coulomb's disc of radius
-    mu lam_n), then the normal row. A contact's bodies' velocities are read once and written once, in locals
-    between its three rows' updates (`speed` and `push` read and wrote them at every row: the same figures, to the
-    last bit, in less time)."""
+    """One sweep of projected Gauss-Seidel over the contacts (`relax` each)."""
     for c in range(ct.count[0]):
-        a, b = ct.a[c], ct.b[c]
-        va, wa, vb, wb = _velocities(y, a, b)
-        changed = False
-        # a contact that holds nothing (lam_n and its friction 0) has a disc of radius 0: its friction stays 0
-        # (a resting heap's speculative contacts that stay apart: 423 of its 599)
-        if ct.mu[c] > 0.0 and (ct.lam[c, 0] > 0.0 or ct.lam[c, 1] != 0.0 or ct.lam[c, 2] != 0.0):
-            l1 = ct.lam[c, 1] - ct.mass[c, 1] * _speed_of(ct, c, 1, va, wa, vb, wb)
-            l2 = ct.lam[c, 2] - ct.mass[c, 2] * _speed_of(ct, c, 2, va, wa, vb, wb)
-            limit = ct.mu[c] * ct.lam[c, 0]
-            size = math.sqrt(l1 * l1 + l2 * l2)
-            if size > limit:
-                scale = limit / size if size > 0.0 else 0.0
-                l1, l2 = l1 * scale, l2 * scale
-            va, wa, vb, wb = _pushed(ct, c, 1, l1 - ct.lam[c, 1], va, wa, vb, wb)
-            va, wa, vb, wb = _pushed(ct, c, 2, l2 - ct.lam[c, 2], va, wa, vb, wb)
-            ct.lam[c, 1], ct.lam[c, 2] = l1, l2
-            changed = True
-        # lam_n' = max(0, lam_n + m_n (target - u_n))
-        lam = max(0.0, ct.lam[c, 0] + ct.mass[c, 0] * (ct.bounce[c] - _speed_of(ct, c, 0, va, wa, vb, wb)))
-        if lam != ct.lam[c, 0]:  # (a contact apart that stays apart: nothing to push)
-            va, wa, vb, wb = _pushed(ct, c, 0, lam - ct.lam[c, 0], va, wa, vb, wb)
-            ct.lam[c, 0] = lam
-            changed = True
-        if changed:
-            _store(y, a, b, va, wa, vb, wb)
+        relax(ct, c, y)
+
+
+@inlined
+def relax(ct, c, y):
+    """Contact c's update of a Gauss-Seidel sweep: friction (no slip, within Coulomb's disc of radius mu lam_n),
+    then the normal row (inlined: called with the contacts' named tuple at every contact of every sweep). Its bodies' velocities are read once and written once, in locals between its three rows'
+    updates (`speed` and `push` read and wrote them at every row: the same figures, to the last bit, in less
+    time)."""
+    a, b = ct.a[c], ct.b[c]
+    va, wa, vb, wb = _velocities(y, a, b)
+    changed = False
+    # a contact that holds nothing (lam_n and its friction 0) has a disc of radius 0: its friction stays 0
+    # (a resting heap's speculative contacts that stay apart: 423 of its 599)
+    if ct.mu[c] > 0.0 and (ct.lam[c, 0] > 0.0 or ct.lam[c, 1] != 0.0 or ct.lam[c, 2] != 0.0):
+        l1 = ct.lam[c, 1] - ct.mass[c, 1] * _speed_of(ct, c, 1, va, wa, vb, wb)
+        l2 = ct.lam[c, 2] - ct.mass[c, 2] * _speed_of(ct, c, 2, va, wa, vb, wb)
+        limit = ct.mu[c] * ct.lam[c, 0]
+        size = math.sqrt(l1 * l1 + l2 * l2)
+        if size > limit:
+            scale = limit / size if size > 0.0 else 0.0
+            l1, l2 = l1 * scale, l2 * scale
+        va, wa, vb, wb = _pushed(ct, c, 1, l1 - ct.lam[c, 1], va, wa, vb, wb)
+        va, wa, vb, wb = _pushed(ct, c, 2, l2 - ct.lam[c, 2], va, wa, vb, wb)
+        ct.lam[c, 1], ct.lam[c, 2] = l1, l2
+        changed = True
+    # lam_n' = max(0, lam_n + m_n (target - u_n))
+    lam = max(0.0, ct.lam[c, 0] + ct.mass[c, 0] * (ct.bounce[c] - _speed_of(ct, c, 0, va, wa, vb, wb)))
+    if lam != ct.lam[c, 0]:  # (a contact apart that stays apart: nothing to push)
+        va, wa, vb, wb = _pushed(ct, c, 0, lam - ct.lam[c, 0], va, wa, vb, wb)
+        ct.lam[c, 0] = lam
+        changed = True
+    if changed:
+        _store(y, a, b, va, wa, vb, wb)
 
 
 @kernel
@@ -484,22 +490,28 @@ def _still(ct, c):
 
 @kernel
 def separate(ct, pseudo, y, h):
-    """One sweep of the position pass over the contacts: pseudo-velocities (pseudo (n+1,13), columns 7..12 as v, w
-    in y) that move positions only (split impulses), each contact's normal speed in them brought to its target
-    (`clear`) with an impulse no less than its least. A contact that only holds its bodies back gets its target
-    when one of them first moves: not brought nearer than its gap and its speed after the solve (y) allow."""
+    """One sweep of the position pass over the contacts (`separate_one` each)."""
     for c in range(ct.count[0]):
-        a, b = ct.a[c], ct.b[c]
-        if pseudo[a, MOVED] == 0.0 and pseudo[b, MOVED] == 0.0 and _still(ct, c):
-            continue  # (its update would be max(0, m_n target) = 0: most of a heap's rows, skipped)
-        if math.isnan(ct.bounce[c]):
-            # u~ >= -(gap / h + u+): the pass may close no more than what the drift at u+ leaves of its gap
-            ct.bounce[c] = min(0.0, -(max(-ct.depth[c], 0.0) / h + speed(ct, c, 0, y)))
-        lam = max(ct.base[c], ct.push[c] + ct.mass[c, 0] * (ct.bounce[c] - speed(ct, c, 0, pseudo)))
-        if lam != ct.push[c]:
-            push(ct, c, 0, pseudo, lam - ct.push[c])
-            ct.push[c] = lam
-            pseudo[a, MOVED], pseudo[b, MOVED] = 1.0, 1.0
+        separate_one(ct, c, pseudo, y, h)
+
+
+@inlined
+def separate_one(ct, c, pseudo, y, h):
+    """Contact c's update of a sweep of the position pass: pseudo-velocities (pseudo (n+1,13), columns 7..12 as v,
+    w in y) that move positions only (split impulses), its normal speed in them brought to its target (`clear`)
+    with an impulse no less than its least. A contact that only holds its bodies back gets its target when one of
+    them first moves: not brought nearer than its gap and its speed after the solve (y) allow."""
+    a, b = ct.a[c], ct.b[c]
+    if pseudo[a, MOVED] == 0.0 and pseudo[b, MOVED] == 0.0 and _still(ct, c):
+        return  # (its update would be max(0, m_n target) = 0: most of a heap's rows, skipped)
+    if math.isnan(ct.bounce[c]):
+        # u~ >= -(gap / h + u+): the pass may close no more than what the drift at u+ leaves of its gap
+        ct.bounce[c] = min(0.0, -(max(-ct.depth[c], 0.0) / h + speed(ct, c, 0, y)))
+    lam = max(ct.base[c], ct.push[c] + ct.mass[c, 0] * (ct.bounce[c] - speed(ct, c, 0, pseudo)))
+    if lam != ct.push[c]:
+        push(ct, c, 0, pseudo, lam - ct.push[c])
+        ct.push[c] = lam
+        pseudo[a, MOVED], pseudo[b, MOVED] = 1.0, 1.0
 
 
 @kernel

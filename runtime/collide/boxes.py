@@ -69,9 +69,12 @@ def sphere_box(table, a, b, x, R, margin):
 
 
 def capsule_box(table, a, b, x, R, margin):
-    """The two end spheres, plus the point of the axis segment nearest the box when it lies inside the segment
-    (a capsule across a box's edge). The distance from the segment to the box is convex along the segment, so
-    a golden-section search finds that point."""
+    """The two end spheres; then, where the point of the axis segment nearest the box lies over a face of it, the
+    ends of the segment's part over that face (features 3, 4; the segment's height over the face is linear along
+    it, so those ends and the end spheres hold its least), else that nearest point when it lies inside the segment
+    (2: a capsule across a box's edge). A capsule lying across a face rests on the face's two sides, not on one
+    point it rocks about. The distance from the segment to the box is convex along the segment, so a golden-section
+    search finds the nearest point."""
 
     r, xb, Rb, hb = table.radius[a], x[b], R[b], table.half[b]
     s0, s1 = segment(table, a, x, R)
@@ -80,11 +83,40 @@ def capsule_box(table, a, b, x, R, margin):
         dist, surface, n = point_box(end, xb, Rb, hb)
         parts.append(_one(0.5 * (end - n * r + surface), n, r - dist, k))
     t = _golden(lambda u: point_box(s0 + u * (s1 - s0), xb, Rb, hb)[0])
-    if 0.01 < t < 0.99:
-        p = s0 + t * (s1 - s0)
-        dist, surface, n = point_box(p, xb, Rb, hb)
+    p = s0 + t * (s1 - s0)
+    dist, surface, n = point_box(p, xb, Rb, hb)
+    faces = np.flatnonzero(np.abs(Rb.T @ n) > 1.0 - 1e-9)
+    if dist > 0.0 and faces.size:
+        parts += _over_face(s0, s1, r, xb, Rb, hb, int(faces[0]), n)
+    elif 0.01 < t < 0.99:
         parts.append(_one(0.5 * (p - n * r + surface), n, r - dist, 2))
     return _keep(*(np.concatenate(q) for q in zip(*parts)), margin)
+
+
+def _over_face(s0, s1, r, xb, Rb, hb, k, n):
+    """Contacts at the ends of the part of the segment s0..s1 (radius r) that lies over the rectangle of the box's
+    face k (outward unit normal n) and are not the segment's own ends: depth r less the end's height over the face,
+    the point halfway between the capsule's surface and the face."""
+    f = xb + hb[k] * n
+    lo, hi = 0.0, 1.0
+    for j in ((k + 1) % 3, (k + 2) % 3):
+        # |(s0 + t (s1 - s0) - f) . b_j| <= h_j
+        a0, a1 = (s0 - f) @ Rb[:, j], (s1 - f) @ Rb[:, j]
+        if a1 == a0:
+            if abs(a0) > hb[j]:
+                return []
+            continue
+        ta, tb = sorted(((hb[j] - a0) / (a1 - a0), (-hb[j] - a0) / (a1 - a0)))
+        lo, hi = max(lo, ta), min(hi, tb)
+    if lo > hi:
+        return []
+    out = []
+    for feature, t in ((3, lo), (4, hi)):
+        if 1e-9 < t < 1.0 - 1e-9:
+            q = s0 + t * (s1 - s0)
+            height = float((q - f) @ n)
+            out.append(_one(q - 0.5 * (r + height) * n, n, r - height, feature))
+    return out
 
 
 def _golden(f, iterations: int = 40) -> float:

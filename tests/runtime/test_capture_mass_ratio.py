@@ -1,0 +1,97 @@
+"""Heavy bodies on light ones, on the capturing path, in both plans: a slab on a cube 360 times lighter, and a
+stack of cubes whose densities alternate between 100 and 8000 kg/m3, and a steel capsule lying across a light cube,
+must stand still at their exact heights (within the position pass's slop of 0.1 mm, and 0.05 mm more), with no
+contact deeper than that, and gain no energy.
+
+Found 2026-12-07: projected Gauss-Seidel passes a heavy body's weight down through a light one a fraction
+m_light / (m_heavy + m_light) per sweep, so in 16 sweeps the slab sank through the cube by 1.5 to 12 mm (exit 3),
+and a stack of 8 such cubes beside a far impact drifted 2.1 mm (exit 0). Now an island that the sweeps leave
+unsolved is solved whole (capture/islands.py): the slab rests; the stack does not yet (strict xfail below: the
+direct solve of all its rows that hold, sticking friction included, asks for normal impulses down to -0.56 N s
+where the sweeps hold 0.013 at least, so it is put back and the sweeps keep the stack as they did). The capsule rocked on the one axis point nearest the cube and
+sank 14 mm into it in 0.5 s; it now rests on the two sides of the face it lies across (capture/boxes.py)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from isaac.api import Simulation
+
+from .test_capture_jointed_bounce import largest_rise
+
+PLANS = {"dynamics 1 ms": "solver dynamics { integrator rk4  step 1 ms }",
+         "dynamics 4 ms": "solver dynamics { integrator rk4  step 4 ms }",
+         "procedural 4 ms": "solver procedural { step 8 ms  substeps 2 }"}
+
+
+def _scene(plan: str, bodies: str, materials: str, seconds: float) -> str:
+    return (f"scene ratio {{\n  time 0 s .. {seconds} s\n  frames 100 Hz\n  gravity (0, -9.81, 0) m/s2\n  {PLANS[plan]}\n"
+            f"  material floor {{ density 800 kg/m3  friction 0.5  restitution 0 }}\n{materials}"
+            f"  body floor plane {{ material floor }}\n{bodies}}}\n")
+
+
+def _run(text: str, seconds: float):
+    sim = Simulation.from_text(text)
+    energy = [sim.energy()]
+    for k in range(1, int(round(seconds * 100)) + 1):
+        sim.advance_to(k * 0.01)
+        energy.append(sim.energy())
+    return sim, np.array(energy)
+
+
+# the position pass leaves a contact up to its slop (0.1 mm) deep; a body rests within this of its exact height
+HEIGHT = 1.5e-4
+
+
+def _rests(plan: str, bodies: str, materials: str, heights: dict) -> None:
+    """The scene's 1.5 s on the capturing path: no contact deeper than HEIGHT, energy never rising by 1 %, and each
+    body named in heights at rest with its centre there ((x, y, z), m) within HEIGHT."""
+    sim, energy = _run(_scene(plan, bodies, materials, 1.5), 1.5)
+    report = sim.contact_report()
+    assert report["path"] == "capturing"
+    assert report["deepest"] < HEIGHT
+    assert largest_rise(energy) < 0.01
+    for name, centre in heights.items():
+        state = sim.state.y[sim.plan.names.index(name)]
+        assert np.abs(state[7:13]).max() < 1e-3, name
+        assert np.abs(state[:3] - centre).max() < HEIGHT, name
+
+
+@pytest.mark.parametrize("plan", PLANS)
+def test_a_heavy_slab_dropped_on_a_light_cube_rests_on_it(plan):
+    # a 36 kg slab (0.3 x 0.05 x 0.3 m, 8000 kg/m3) falls 2 cm onto a 0.1 kg cube (10 cm, 100 kg/m3): an impact
+    # between moving bodies, so the run takes the capturing path; clay (e = 0) stays where it lands
+    materials = ("  material light { density 100 kg/m3  friction 0.5  restitution 0 }\n"
+                 "  material heavy { density 8000 kg/m3  friction 0.5  restitution 0 }\n")
+    bodies = ("  body cube box { size (0.1, 0.1, 0.1) m  material light  at (0, 0.05, 0) m }\n"
+              "  body slab box { size (0.3, 0.05, 0.3) m  material heavy  at (0, 0.145, 0) m }\n")
+    _rests(plan, bodies, materials, {"cube": (0, 0.05, 0), "slab": (0, 0.125, 0)})
+
+
+@pytest.mark.xfail(strict=True, reason="a stack of alternating densities: the direct solve of its rows that hold asks "
+                   "for negative normal impulses (its contacts' set is not the sweeps'), is put back, and the sweeps "
+                   "let it sink 1.3 mm")
+@pytest.mark.parametrize("plan", PLANS)
+def test_a_stack_of_alternating_densities_stands_still_beside_an_impact(plan):
+    # 8 cubes of 10 cm, 100 and 8000 kg/m3 in turn, each resting on the one below; far away a ball strikes a ball
+    # (an impact between moving bodies: the run takes the capturing path at 0.1 s)
+    densities = (100, 8000, 300, 5000, 600, 2500, 1000, 8000)
+    materials = "".join(f"  material m{i} {{ density {rho} kg/m3  friction 0.5  restitution 0 }}\n"
+                        for i, rho in enumerate(densities))
+    materials += "  material ball { density 1000 kg/m3  friction 0.1  restitution 0.5 }\n"
+    bodies = "".join(f"  body b{i} box {{ size (0.1, 0.1, 0.1) m  material m{i}  at ({0.01 * (i % 3 - 1)}, "
+                     f"{0.05 + 0.1 * i:.2f}, 0) m }}\n" for i in range(len(densities)))
+    bodies += ("  body striker sphere { radius 0.05 m  material ball  at (1.0, 0.05, 0) m  velocity (1, 0, 0) m/s }\n"
+               "  body struck sphere { radius 0.05 m  material ball  at (1.2, 0.05, 0) m }\n")
+    _rests(plan, bodies, materials, {f"b{i}": (0.01 * (i % 3 - 1), 0.05 + 0.1 * i, 0) for i in range(len(densities))})
+
+
+@pytest.mark.parametrize("plan", PLANS)
+def test_a_steel_capsule_lying_across_a_light_cube_rests_on_it(plan):
+    # a capsule of r 4 cm and 20 cm between its end centres (10.2 kg of steel) lands flat across the top of a 0.1 kg
+    # cube from 1 cm, its ends 5 cm beyond the cube's sides
+    materials = ("  material light { density 100 kg/m3  friction 0.6  restitution 0.3 }\n"
+                 "  material steel { density 8000 kg/m3  friction 0.6  restitution 0.3 }\n")
+    bodies = ("  body cube box { size (0.1, 0.1, 0.1) m  material light  at (0, 0.05, 0) m }\n"
+              "  body rod capsule { radius 0.04 m  length 0.2 m  material steel  at (0, 0.15, 0) m  orient (0, 90, 0) }\n")
+    _rests(plan, bodies, materials, {"cube": (0, 0.05, 0), "rod": (0, 0.14, 0)})
