@@ -515,14 +515,20 @@ def separate_one(ct, c, pseudo, y, h):
 
 
 @kernel
+def contact_work(ct, c, y):
+    """The energy contact c's impulses gave its bodies this step (J): sum over its rows of lam (u- + u+) / 2."""
+    mine = 0.5 * (ct.hit[c] + ct.lam[c, 0]) * (ct.before[c, 0] + speed(ct, c, 0, y))
+    mine += 0.5 * ct.lam[c, 1] * (ct.before[c, 1] + speed(ct, c, 1, y))
+    return mine + 0.5 * ct.lam[c, 2] * (ct.before[c, 2] + speed(ct, c, 2, y))
+
+
+@kernel
 def work(ct, y):
     """(energy the contact impulses created this step: sum over rows of lam (u- + u+) / 2, J; the contact that
     created the most)."""
     total, most, which = 0.0, 0.0, -1
     for c in range(ct.count[0]):
-        mine = 0.5 * (ct.hit[c] + ct.lam[c, 0]) * (ct.before[c, 0] + speed(ct, c, 0, y))
-        mine += 0.5 * ct.lam[c, 1] * (ct.before[c, 1] + speed(ct, c, 1, y))
-        mine += 0.5 * ct.lam[c, 2] * (ct.before[c, 2] + speed(ct, c, 2, y))
+        mine = contact_work(ct, c, y)
         total += mine
         if mine > most:
             most, which = mine, c
