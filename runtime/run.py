@@ -243,8 +243,19 @@ def _say_summary(scene: ir.Scene, r: dict, out: Path, written: list, options: Ru
     if plots:
         print(f"plots: {', '.join(plots)} in {out / 'plots'}/")
     if options.verbosity > 0:
+        if r.get("contact"):
+            print(_contact_path(r["contact"]))
         for path in written:
             print(f"  wrote {path}")
+
+
+def _contact_path(contact: dict) -> str:
+    """-v's line on the contact path the run took, and why (docs/collisions.md, "Many contacts")."""
+    if contact["path"] != "capturing":
+        return f"contacts: the exact path ({contact['why']})"
+    return (f"contacts: the capturing path from t = {contact['since']:.6g} s ({contact['why']}); deepest "
+            f"{contact['deepest'] * 1e3:.3g} mm; {contact.get('islands_solved_whole', 0)} islands solved whole "
+            f"(summed over steps)")
 
 
 def _broken_tolerance(where: str, report: dict) -> bool:

@@ -6,6 +6,8 @@ the exact path (runtime/collide: each impact located in time, each change of the
     narrow.py   closed-form contact points of a pair (boxes.py: box-box)
     compound.py a pair with a compound body: every pair of parts whose boxes meet, with narrow.py's tests
     solve.py    the velocity-level contact problem, projected Gauss-Seidel, warm-started by feature
+    islands.py  the bodies that touch one another, grouped each step; an island of very unequal masses that the
+                sweeps leave unsolved is solved whole (newton.py: its velocities, by Newton's method)
     loop.py     the step: kick, contacts, solve, drift, checks, events, frames
     data.py     the run's contacts, pairs, checks and events
     events.py   the loop's events as blocks of rows, dicts only when read

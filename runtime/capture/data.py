@@ -22,7 +22,8 @@ the Python side when a step finds more than they hold (the step is then taken ag
                over 2C) of the last step's pairs: [pair key, first, end, stamp]; old_used (C,) whether this
                step's contacts took an old one's impulses already; match (C,) the old contact whose impulses
                each took (-1: none); group (C,) each contact's island, member (C,) the contacts by island,
-               kept (C,3) its island's impulses kept (islands.py)
+               kept (C,3) its island's impulses kept (islands.py); slides (C,) whether it slides in its island's
+               Newton solve (newton.py)
     Sweep      order (c,) the collidable bodies that are not planes; planes (p,);
                box (n+1,6) each body's world box [lo, hi] grown by its reach over the step; the grid (broad.py):
                cell (n+1,4) each body's cell (x, y, z) and bucket (-1: not in the grid), start (B+1,) where
@@ -39,7 +40,8 @@ the Python side when a step finds more than they hold (the step is then taken ag
                impulses created energy over the tolerance, [2] contacts solved (sum over steps), [3] steps,
                [4] islands solved whole (islands.py; sum over steps)
     Islands    parent (n+1,), first (n+2,), fill (n+1,) int; rows (R,) int, dense (R,R), rhs (R,); y (n+1,13) an
-               island's velocities kept: islands.py
+               island's velocities kept: islands.py; local (n+1,) int, order (R/6,) int, step (n+1,13), grad (R,):
+               newton.py
 """
 from __future__ import annotations
 
@@ -52,11 +54,11 @@ FEATURES = 1 << 24
 
 Contacts = namedtuple("Contacts", "count a b point normal depth feature key jac turn inv mass mu bounce lam push "
                                   "before acc old_key old_lam old_acc hit e base approach old_point old_used match runs group "
-                                  "member kept")
+                                  "member kept slides")
 Sweep = namedtuple("Sweep", "order planes box excluded pairs count work struck_in cell start slots fill sorted_box "
                              "frame held")
 Checks = namedtuple("Checks", "worst counts")
-Islands = namedtuple("Islands", "parent first fill rows dense rhs y")
+Islands = namedtuple("Islands", "parent first fill rows dense rhs y local order step grad")
 # the joints' rows (joints.py), by global row: lam (M,) impulse of the last step, mass (M,), target (M,) velocity
 JointRows = namedtuple("JointRows", "lam mass target")
 # events the step writes: one row per pair and impact, or per pair pressing at a frame
@@ -76,7 +78,7 @@ def contacts(capacity: int) -> Contacts:
     # (count[3] -1: no index of last step's contacts yet; every entry of runs is free)
     return Contacts(np.array([0, 0, 0, -1], np.int64), i(), i(), v(), v(), f(), i(), i(), np.zeros((c, 3, 9)), np.zeros((c, 3, 6)),
                     np.zeros((c, 2)), v(), f(), f(), v(), f(), v(), f(), i(), v(), f(), f(), f(), f(), f(), v(), i(),
-                    i(), np.zeros((1 << (2 * c - 1).bit_length(), 4), np.int64), i(), i(), v())
+                    i(), np.zeros((1 << (2 * c - 1).bit_length(), 4), np.int64), i(), i(), v(), i())
 
 
 def grown(old: Contacts, capacity: int) -> Contacts:
@@ -110,7 +112,8 @@ def checks() -> Checks:
 
 def islands(n: int, rows: int) -> Islands:
     i = (lambda size: np.zeros(size, np.int64))
-    return Islands(i(n + 1), i(n + 2), i(n + 1), i(rows), np.zeros((rows, rows)), np.zeros(rows), np.zeros((n + 1, 13)))
+    return Islands(i(n + 1), i(n + 2), i(n + 1), i(rows), np.zeros((rows, rows)), np.zeros(rows), np.zeros((n + 1, 13)),
+                   np.full(n + 1, -1, np.int64), i(rows // 6), np.zeros((n + 1, 13)), np.zeros(rows))
 
 
 def events(capacity: int) -> Events:

@@ -1,57 +1,65 @@
-"""Islands that projected Gauss-Seidel leaves unsolved, solved whole: the bodies that touch one another, with a
-direct solve of the rows that hold (subspace minimization after the sweeps, the scheme Silcowitz, Niebe and Erleben
-call PGS-SM: "A nonsmooth Newton method with applications to computer animation", 2010).
+"""Islands that projected Gauss-Seidel leaves unsolved, solved whole: the bodies that touch one another.
 
 Gauss-Seidel passes an impulse from contact to contact one sweep at a time. Where a heavy body rests on a light
 one, each sweep passes on about m_light / (m_heavy + m_light) of the weight: a 36 kg slab on a 0.1 kg cube on a floor
 needs thousands of sweeps where 16 are taken, and the slab sank through the cube by 1.5 to 12 mm (400 sweeps: still
 1.6 mm at 4 ms). An island is the dynamic bodies joined by contacts (a static or kinematic body joins nothing: the
-floor under a heap does not make the heap one island with the next heap). After the sweeps, an island whose
-heaviest body is RATIO times its lightest or more, whose rows still miss their targets by more than CONVERGED, and
-that has at most DIRECT_ROWS rows that hold, is solved whole, SUBSPACE_ROUNDS times at most:
+floor under a heap does not make the heap one island with the next heap). After the velocity sweeps, an island
+whose heaviest body is MASS_RATIO times its lightest or more, whose rows still miss their targets by more than STILL,
+and that has at most MOST_BODIES bodies, has its velocities solved whole by Newton's method (newton.py).
 
-    the rows that hold: each normal row with lam_n > 0 or that approaches faster than its target, and the two
-    friction rows of each contact that holds and sticks (friction inside Coulomb's disc, slipping slower than
-    STUCK); a sliding contact's friction stays as the sweeps left it
-    A dlam = target - u      A = J M^-1 J^T of those rows (dense, Cholesky; a row that depends on the rows before
-                             it is dropped), u their speeds now
-    lam_n' = max(0, lam_n + dlam_n), lam_t' = lam_t + dlam_t projected onto Coulomb's disc of mu lam_n'
-    ISLAND_SWEEPS sweeps of the island's contacts (the projection's leftovers)
+After the position pass's sweeps, such an island that misses by more than CONVERGED, with at most DIRECT_ROWS rows
+that push, is solved whole in its push impulses (one row a contact, so a direct solve of them is determined up to
+the rows that depend on others), SUBSPACE_ROUNDS times at most (subspace minimization after the sweeps, the scheme
+Silcowitz, Niebe and Erleben call PGS-SM: "A nonsmooth Newton method with applications to computer animation",
+2010):
 
-An island that the solve left missing its targets by more than the sweeps did, or whose contacts it made give its
-bodies energy, is put back as they left it (a stack of 8 cubes of alternating densities: the rows that hold ask for
-normal impulses down to -0.56 N s). The position
-pass's islands are solved the same way after its sweeps, its normal rows only (`separate_islands`). A heap, whose
-islands have more rows, is left to the sweeps. Data (data.py Islands): parent (n+1,), the union-find forest of the
-bodies; first (n+2,), where each island's contacts start in the contacts' `member`; fill (n+1,) scratch; rows
-(DIRECT_ROWS,) the rows solved (contact * 3 + row); dense (DIRECT_ROWS, DIRECT_ROWS) and rhs (DIRECT_ROWS,) the
-system; y (n+1, 13) the island's velocities (or pseudo-velocities) before, to put back.
+    the rows that push: above their least impulse, or closing faster than their target
+    A dp = target - u~       A = J M^-1 J^T of those rows (dense, Cholesky; a row that depends on the rows before
+                             it is dropped), u~ their pseudo-velocities now
+    p' = max(p_least, p + dp), then ISLAND_SWEEPS sweeps of the island's contacts (the projection's leftovers)
+
+Either way, an island that the solve left missing its targets by more than the sweeps did, or (velocities) whose
+contacts it made give its bodies energy, is put back as they left it. Data (data.py Islands): parent (n+1,), the
+union-find forest of the bodies; first (n+2,), where each island's contacts start in the contacts' `member`; fill
+(n+1,) scratch; rows (DIRECT_ROWS,) the rows solved (contact * 3); dense (DIRECT_ROWS, DIRECT_ROWS) and rhs
+(DIRECT_ROWS,) the system; y (n+1, 13) the island's velocities (or pseudo-velocities) before, to put back; local,
+order, step and grad: newton.py's.
 """
 from __future__ import annotations
 
 import math
 
+from ..core.build import MASS_RATIO
 from ..core.jit import kernel
-from .solve import MOVED, contact_work, push, relax, separate_one, speed
+from .newton import STUCK, cholesky_solve, solve_island
+from .solve import MOVED, contact_work, push, separate_one, speed
 
-# an island whose rows miss their targets by more than this after the sweeps is solved whole (m/s): 1 % of what
-# gravity adds to a speed in a step of 1 ms
+# an island whose rows miss their targets by more than this after the position pass's sweeps is solved whole (m/s
+# of pseudo-velocity): 1 % of what gravity adds to a speed in a step of 1 ms
 CONVERGED = 1e-4
-# ... if the heaviest of its bodies is at least this many times its lightest: the sweeps solve bodies of like masses
-# (a box alone on a floor misses by more than CONVERGED at most steps: solved whole, the pile of 125 boxes took
-# 21 % more time)
-RATIO = 10.0
-# the most rows an island solved whole may have (a stack of 16 boxes, four points a face, all sticking; a dense solve
-# costs k^3 / 6: without RATIO, solving islands of up to 192 rows made the shipped dominoes 44 % slower)
+# ... after the velocity sweeps (m/s): the Newton solve's own give leaves 3e-6 (newton.py STIFFNESS). A stack of 8
+# cubes of alternating densities at 4 ms, looked at each frame: gated at 1e-4 its cubes turned at up to 9.2e-4
+# rad/s, between steps solved whole and steps left to the sweeps, and it was solved 92 times in 1.4 s; at 1e-5,
+# 8e-5 rad/s and 28 times
+STILL = 1e-5
+# (either, only if its heaviest body is MASS_RATIO times its lightest or more, core/build.py: the sweeps solve
+# bodies of like masses, and a box alone on a floor misses by more than CONVERGED at most steps: solved whole, the
+# pile of 125 boxes took 21 % more time)
+# the most rows that push an island solved whole in the position pass may have (a stack of 48 boxes, four points a
+# face; a dense solve costs k^3 / 6)
 DIRECT_ROWS = 192
 SUBSPACE_ROUNDS = 3
+# the most bodies an island solved whole in its velocities may have (6 unknowns each: newton.py; its Hessian takes
+# the place of the position pass's dense system)
+MOST_BODIES = DIRECT_ROWS // 6
 ISLAND_SWEEPS = 4
-# a row whose pivot is below this fraction of its diagonal depends on the rows before it (`_solve_dense`): exact
-# dependence leaves 1e-14 of it, a slab of 36 kg on a cube of 0.1 kg 3e-3
+# a row whose pivot is below this fraction of its diagonal depends on the rows before it (newton.py
+# `cholesky_solve`): exact dependence leaves 1e-14 of it; the smallest eigenvalue of the velocity rows of a slab of
+# 36 kg on a cube of 0.1 kg that do not depend on others is 8.7e-3 of the largest (measured)
 DEPENDENT = 1e-7
-# friction within this fraction of the disc's edge is on it; a contact slipping faster than this (m/s) slides
+# friction within this fraction of the disc's edge is on it (a contact slipping faster than newton.STUCK slides)
 EDGE = 1e-6
-STUCK = 1e-2
 
 
 @kernel
@@ -117,25 +125,6 @@ def _miss(ct, c, y):
 
 
 @kernel
-def _holding_rows(ct, y, isl, first, end):
-    """isl.rows <- the island's rows that hold (module docstring) as contact * 3 + row, a contact's normal row
-    first, isl.rhs <- target - u of each. Returns their count (beyond DIRECT_ROWS: not filled past it)."""
-    k = 0
-    for i in range(first, end):
-        c = ct.member[i]
-        u = speed(ct, c, 0, y)
-        if not (ct.lam[c, 0] > 0.0 or u < ct.bounce[c]):
-            continue
-        rows = 3 if _sticks(ct, c, y) else 1
-        if k + rows <= DIRECT_ROWS:
-            isl.rows[k], isl.rhs[k] = 3 * c, ct.bounce[c] - u
-            for row in range(1, rows):
-                isl.rows[k + row], isl.rhs[k + row] = 3 * c + row, -speed(ct, c, row, y)
-        k += rows
-    return k
-
-
-@kernel
 def _coupling(ct, c, r, d, s):
     """A's entry J_(c,r) M^-1 J_(d,s)^T: the change of row r of contact c's speed per unit impulse along row s of
     contact d, through each body they share: sign_c sign_d (d_c . d_d / m + (r_c x d_c) . I^-1 (r_d x d_d)), sign
@@ -154,71 +143,6 @@ def _coupling(ct, c, r, d, s):
                 value += inv * ct.jac[c, r, k] * ct.jac[d, s, k] + ct.jac[c, r, 3 + 3 * side + k] * ct.turn[d, s, 3 * other + k]
             total += value if side == other else -value
     return total
-
-
-@kernel
-def _solve_dense(isl, k):
-    """isl.rhs <- A^-1 rhs for the k rows' A in isl.dense (lower triangle, overwritten by its Cholesky factor), each
-    row that depends on the rows before it (its pivot below DEPENDENT of its diagonal) dropped: its change 0. A
-    face's four points on a face hold a body by three independent rows, and their targets (each point's gap / h)
-    need not agree: solved with A regularized, the fourth's disagreement of 1e-4 m/s came back as 2e4 N s."""
-    A, x = isl.dense, isl.rhs
-    # A = L L^T, L in A's lower triangle; a dropped row's column of L is 0
-    for j in range(k):
-        pivot = A[j, j]
-        for p in range(j):
-            pivot -= A[j, p] * A[j, p]
-        if pivot <= DEPENDENT * A[j, j]:
-            for i in range(j, k):
-                A[i, j] = 0.0
-            continue
-        pivot = math.sqrt(pivot)
-        A[j, j] = pivot
-        for i in range(j + 1, k):
-            value = A[i, j]
-            for p in range(j):
-                value -= A[i, p] * A[j, p]
-            A[i, j] = value / pivot
-    # L z = rhs, then L^T x = z
-    for i in range(k):
-        value = x[i]
-        for p in range(i):
-            value -= A[i, p] * x[p]
-        x[i] = value / A[i, i] if A[i, i] > 0.0 else 0.0
-    for i in range(k - 1, -1, -1):
-        value = x[i]
-        for p in range(i + 1, k):
-            value -= A[p, i] * x[p]
-        x[i] = value / A[i, i] if A[i, i] > 0.0 else 0.0
-
-
-@kernel
-def _subspace(ct, y, isl, k):
-    """One round of the direct solve of the k rows in isl.rows (module docstring): A assembled and solved, each
-    contact's new impulses projected (lam_n >= 0, friction onto Coulomb's disc of mu lam_n') and applied."""
-    for i in range(k):
-        c, r = isl.rows[i] // 3, isl.rows[i] % 3
-        for j in range(i + 1):
-            isl.dense[i, j] = _coupling(ct, c, r, isl.rows[j] // 3, isl.rows[j] % 3)
-    _solve_dense(isl, k)
-    i = 0
-    while i < k:
-        c = isl.rows[i] // 3
-        sticking = i + 1 < k and isl.rows[i + 1] // 3 == c
-        normal = max(0.0, ct.lam[c, 0] + isl.rhs[i])
-        l1, l2 = ct.lam[c, 1], ct.lam[c, 2]
-        if sticking:
-            l1, l2 = l1 + isl.rhs[i + 1], l2 + isl.rhs[i + 2]
-        # |lam_t| <= mu lam_n'
-        size, limit = math.sqrt(l1 * l1 + l2 * l2), ct.mu[c] * normal
-        if size > limit:
-            scale = limit / size
-            l1, l2 = l1 * scale, l2 * scale
-        push(ct, c, 0, y, normal - ct.lam[c, 0])
-        push(ct, c, 1, y, l1 - ct.lam[c, 1])
-        push(ct, c, 2, y, l2 - ct.lam[c, 2])
-        ct.lam[c, 0], ct.lam[c, 1], ct.lam[c, 2] = normal, l1, l2
-        i += 3 if sticking else 1
 
 
 @kernel
@@ -257,7 +181,7 @@ def _position_subspace(ct, pseudo, isl, k):
     for i in range(k):
         for j in range(i + 1):
             isl.dense[i, j] = _coupling(ct, isl.rows[i] // 3, 0, isl.rows[j] // 3, 0)
-    _solve_dense(isl, k)
+    cholesky_solve(isl.dense, isl.rhs, k, DEPENDENT)
     for i in range(k):
         c = isl.rows[i] // 3
         lam = max(ct.base[c], ct.push[c] + isl.rhs[i])
@@ -295,23 +219,12 @@ def _island_work(ct, y, first, end):
 
 
 @kernel
-def _rows(ct, v, isl, first, end, positions):
-    return _pushing_rows(ct, v, isl, first, end) if positions else _holding_rows(ct, v, isl, first, end)
-
-
-@kernel
-def _round(ct, v, y, h, isl, k, first, end, positions):
-    """One direct solve of the island's k rows in isl.rows, then ISLAND_SWEEPS sweeps of its contacts."""
-    if positions:
-        _position_subspace(ct, v, isl, k)
-    else:
-        _subspace(ct, v, isl, k)
+def _round(ct, pseudo, y, h, isl, k, first, end):
+    """One direct solve of the position pass's k rows in isl.rows, then ISLAND_SWEEPS sweeps of its contacts."""
+    _position_subspace(ct, pseudo, isl, k)
     for _ in range(ISLAND_SWEEPS):
         for i in range(first, end):
-            if positions:
-                separate_one(ct, ct.member[i], v, y, h)
-            else:
-                relax(ct, ct.member[i], v)
+            separate_one(ct, ct.member[i], pseudo, y, h)
 
 
 @kernel
@@ -337,39 +250,55 @@ def _keep(ct, v, isl, first, end, back, positions):
 
 
 @kernel
-def _solve_whole(ct, v, y, h, isl, positions):
-    """Each island (`_group`) that the sweeps left missing its targets by more than CONVERGED, with at most
-    DIRECT_ROWS rows that hold, solved whole (module docstring); one that the solve left missing more than the
-    sweeps did put back as they left it. v: the velocities (y), or the position pass's pseudo-velocities. Returns
-    how many were solved."""
+def _needs_solving(ct, v, isl, first, end, positions):
+    """How far the island's rows miss their targets (`_island_miss`) if it is to be solved whole: its heaviest body
+    at least MASS_RATIO times its lightest (and, in the position pass, at most DIRECT_ROWS rows that push), else 0."""
+    held, lightest, heaviest = 0, math.inf, 0.0
+    for i in range(first, end):
+        c = ct.member[i]
+        held += 1 if _held(ct, c, positions) else 0
+        for side in range(2):
+            if ct.inv[c, side] > 0.0:  # (1 / m)
+                lightest, heaviest = min(lightest, ct.inv[c, side]), max(heaviest, ct.inv[c, side])
+    if end == first or (positions and held > DIRECT_ROWS) or heaviest < MASS_RATIO * lightest:
+        return 0.0  # (bodies of like masses: their speeds are not looked at)
+    return _island_miss(ct, v, first, end, positions)
+
+
+@kernel
+def _separate_whole(ct, pseudo, y, h, isl, first, end):
+    """The position pass's island solved whole, SUBSPACE_ROUNDS times at most (module docstring). Returns False
+    if it was not (no rows that push, or more than DIRECT_ROWS)."""
+    for round in range(SUBSPACE_ROUNDS):
+        k = _pushing_rows(ct, pseudo, isl, first, end)
+        if k == 0 or k > DIRECT_ROWS:
+            return round > 0
+        _round(ct, pseudo, y, h, isl, k, first, end)
+        if _island_miss(ct, pseudo, first, end, True) <= CONVERGED:
+            break
+    return True
+
+
+@kernel
+def _solve_whole(bodies, R, ct, v, y, h, isl, positions):
+    """Each island (`_group`) that the sweeps left missing its targets by more than CONVERGED, with bodies whose
+    masses differ MASS_RATIO times or more, solved whole (module docstring); one that the solve left missing more than
+    the sweeps did, or whose contacts it made give energy, put back as they left it. v: the velocities (y), or the
+    position pass's pseudo-velocities. Returns how many were solved."""
     solved = 0
     for g in range(len(isl.parent)):
         first, end = isl.first[g], isl.first[g + 1]
-        held, lightest, heaviest = 0, math.inf, 0.0
-        for i in range(first, end):
-            c = ct.member[i]
-            held += 1 if _held(ct, c, positions) else 0
-            for side in range(2):
-                if ct.inv[c, side] > 0.0:  # (1 / m)
-                    lightest, heaviest = min(lightest, ct.inv[c, side]), max(heaviest, ct.inv[c, side])
-        if end == first or held > DIRECT_ROWS or heaviest < RATIO * lightest:
-            continue  # (a heap, or bodies of like masses: its speeds are not looked at)
-        missed = _island_miss(ct, v, first, end, positions)
-        if missed <= CONVERGED:
-            continue
-        k = _rows(ct, v, isl, first, end, positions)
-        if k == 0 or k > DIRECT_ROWS:
+        missed = _needs_solving(ct, v, isl, first, end, positions)
+        if missed <= (CONVERGED if positions else STILL):
             continue
         _keep(ct, v, isl, first, end, False, positions)
         given = 0.0 if positions else _island_work(ct, v, first, end)
-        for round in range(SUBSPACE_ROUNDS):
-            if round > 0:
-                k = _rows(ct, v, isl, first, end, positions)
-                if k == 0 or k > DIRECT_ROWS:
-                    break
-            _round(ct, v, y, h, isl, k, first, end, positions)
-            if _island_miss(ct, v, first, end, positions) <= CONVERGED:
-                break
+        if positions:
+            done = _separate_whole(ct, v, y, h, isl, first, end)
+        else:
+            done = solve_island(bodies, R, ct, v, isl.y, isl, first, end, MOST_BODIES)
+        if not done:
+            continue
         if _island_miss(ct, v, first, end, positions) > missed or (
                 not positions and _island_work(ct, v, first, end) > max(given, 0.0)):
             _keep(ct, v, isl, first, end, True, positions)
@@ -379,16 +308,16 @@ def _solve_whole(ct, v, y, h, isl, positions):
 
 
 @kernel
-def solve_islands(dynamic, ct, y, isl):
+def solve_islands(bodies, R, ct, y, isl):
     """The step's islands grouped (`_group`), and each that its velocity sweeps left unsolved solved whole
     (`_solve_whole`). Returns how many were."""
-    _group(dynamic, ct, isl)
-    return _solve_whole(ct, y, y, 0.0, isl, False)
+    _group(bodies.dynamic, ct, isl)
+    return _solve_whole(bodies, R, ct, y, y, 0.0, isl, False)
 
 
 @kernel
-def separate_islands(ct, pseudo, y, h, isl):
+def separate_islands(bodies, R, ct, pseudo, y, h, isl):
     """The position pass's islands (grouped by `solve_islands` this step) that its sweeps left unsolved, solved
     whole as the velocities are: a heavy capsule on a light cube was pushed out of it by moving the cube into the
     floor, and sank 14 mm in 0.5 s with every velocity row met. Returns how many were."""
-    return _solve_whole(ct, pseudo, y, h, isl, True)
+    return _solve_whole(bodies, R, ct, pseudo, y, h, isl, True)

@@ -330,7 +330,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
             sweep_joints(m, act, s, s.inv_inertia, jt, y)
         sweep(ct, y)
     if not jointed:
-        chk.counts[4] += solve_islands(m.bodies.dynamic, ct, y, isl)
+        chk.counts[4] += solve_islands(m.bodies, s.R, ct, y, isl)
     _check(ct, chk, y, t, depth_limit, energy_tol)
     for c in range(found):
         ct.acc[c] += ct.lam[c, 0] + ct.hit[c]
@@ -345,7 +345,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
                 close_joints(m, act, s, s.inv_inertia, jt, pseudo)
             separate(ct, pseudo, y, h)
         if not jointed:
-            chk.counts[4] += separate_islands(ct, pseudo, y, h, isl)
+            chk.counts[4] += separate_islands(m.bodies, s.R, ct, pseudo, y, h, isl)
     _drift(m, s, y, pseudo, moved, h, parts, jointed)
     if last:
         place_kinematic(m.kinematic, table, j + grid, y)

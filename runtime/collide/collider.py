@@ -33,7 +33,8 @@ from ..plan.kinematics import never_moving
 from .compound import contact_elements
 from .contacts import ContactSet, set_relative
 from .events import EventLog
-from .narrow import closed_form, needs_fcl
+from .handover import HandOver
+from .narrow import closed_form
 from .pairs import BroadPhase, is_excluded, pair_keys
 from .shapes import PLANE, SPHERE, kinds_of, reach
 from .response import Bodies, Contacts, Joints, Response, contact_rows, row_velocity
@@ -63,7 +64,7 @@ STOP_HALVINGS = 20
 MIN_TURN = 1e-6
 
 
-class Collider:
+class Collider(HandOver):
     """The per-run stage: plan.collisions.start(simulation) builds it; the simulation calls `start` once,
     `on_epoch` when it enters an epoch and `on_stop` when the compiled step asks for a look. stats counts the
     impacts located in time and the crossings the sweep test caught; `lasting` holds the contact rows."""
@@ -114,6 +115,8 @@ class Collider:
         the run over to the capturing path (`wants_capture`)."""
         self._save_start()
         scan = self.scan(always=True)
+        if self._heavy_on_light(self._touching(scan), self.sim.state.t):
+            return
         self.resolve(scan, self.sim.state.t, rewound=True, epoch=epoch)
         if not self.wants_capture:
             self._keep_contacts(scan)  # (resolve changes velocities only: the scan of these positions stands)
@@ -533,38 +536,6 @@ class Collider:
         response.impacts(self.resting_speed)
         response.resting()
         self.log.record(contacts, response.outcome, self._impact_time(scan, contacts, t, rewound))
-
-    def _hands_over(self, contacts, t: float) -> bool:
-        """Whether two moving bodies strike each other here, in a scene that may take the capturing path: then the
-        impact is left to it (Simulation.switch_to_capture), from this instant on."""
-        if not self.may_capture:
-            return False
-        s, plan = self.sim.state, self.plan
-        names = plan.names
-        for a, b in zip(contacts.a.tolist(), contacts.b.tolist()):
-            if self._one_point_only(a, b):
-                a, b = sorted((a, b))
-                self.wants_capture = (f"`{names[a]}` touches `{names[b]}` at t = {t:.6g} s, a pair whose contact only "
-                                      "the capturing path tests in closed form")
-                return True
-        u = row_velocity(contact_rows(contacts, s.x, contacts.normal), np.stack([contacts.a, contacts.b], 1), s.v, s.w)
-        both = plan.dynamic[contacts.a] & plan.dynamic[contacts.b]
-        moving = (both | self.strikers[contacts.a] | self.strikers[contacts.b]) & (u < -self.resting_speed)
-        if not moving.any():
-            return False
-        k = int(np.argmax(moving))
-        a, b = sorted((int(contacts.a[k]), int(contacts.b[k])))
-        what = "moving bodies" if both[k] else "a jointed body and another"
-        self.wants_capture = f"an impact between {what} `{names[a]}` and `{names[b]}` at t = {t:.6g} s"
-        return True
-
-    def _one_point_only(self, a: int, b: int) -> bool:
-        """Whether bodies a and b (or a pair of their parts) have no closed form here, only python-fcl's one point
-        of deepest contact: a cylinder against a box, a capsule or a cylinder. The capturing path tests them in
-        closed form, with a point on each side of a cylinder lying on a box; on one point it rolled off by
-        itself after 0.8 s and sank to its axis, 28 mm deep, found 2026-12-07. (A scene with a mesh never gets
-        here: it may not capture.)"""
-        return any(needs_fcl(ka, kb) for ka in self.kinds[a] for kb in self.kinds[b])
 
     def _at_rest(self, contacts) -> bool:
         """Nothing approaching: lam = 0 solves every row (touching balls of the cradle before the strike)."""

@@ -18,6 +18,10 @@ PAIR_TURN = 0.05
 # constraint's curve (Baumgarte at its frequency and damping ratio) before it is held; within both it is held
 # from the start (the projection closes what is left). A velocity row (gears) is held from the start.
 ASSEMBLE_ABOVE = 1e-10
+# bodies whose masses differ this many times or more: Gauss-Seidel passes the heavy one's weight through the light
+# one slowly, so the capturing step solves their island whole (capture/islands.py), and the exact path hands a run
+# that starts with one touching the other over to it (collide/collider.py `_heavy_on_light`)
+MASS_RATIO = 10.0
 
 
 class CompiledPlan:

@@ -11,6 +11,7 @@ import sys
 from importlib.metadata import requires
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from isaac.cli import main
@@ -149,11 +150,18 @@ CRUSH = """scene crush {
 """
 
 
+# 32 such boxes under a 1250 kg slab: an island of 33 bodies, more than capture/islands.py solves whole (32)
+CRUSH_WIDE = (CRUSH.replace("for i in 0 .. 2 {", "for i in 0 .. 4 {").replace("for j in 0 .. 2 {", "for j in 0 .. 4 {")
+              .replace("(i - 0.5) * 12 cm", "(i - 1.5) * 12 cm").replace("(j - 0.5) * 12 cm", "(j - 1.5) * 12 cm")
+              .replace("size (30, 10, 30) cm  material lead", "size (50, 10, 50) cm  material lead"))
+
+
 def test_contacts_deeper_than_the_depth_limit_exit_3_at_the_deepest_pair(tmp_path, capsys):
-    """A 450 kg slab of lead dropped on eight boxes of 0.26 kg, at 2 ms: the capturing path's sweeps leave the
-    boxes several mm into one another (1760 times lighter than what presses them). A finished run that broke the
-    1 mm depth limit exits 3 with an error at the first body of the deepest pair; every output is written."""
-    scene = scene_file(tmp_path, CRUSH, "crush.isaac")
+    """A 1250 kg slab of lead dropped on 32 boxes of 0.26 kg, at 2 ms: too many bodies for the island to be solved
+    whole, and the capturing path's sweeps leave the boxes several mm into one another (4900 times lighter than what
+    presses them). A finished run that broke the 1 mm depth limit exits 3 with an error at the first body of the
+    deepest pair; every output is written."""
+    scene = scene_file(tmp_path, CRUSH_WIDE, "crush.isaac")
     code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--no-viewer")
     assert code == 3 and "Traceback" not in err
     report = json.loads((tmp_path / "o" / "report.json").read_text())
@@ -165,6 +173,28 @@ def test_contacts_deeper_than_the_depth_limit_exit_3_at_the_deepest_pair(tmp_pat
            f"deepest {contact['deepest'] * 1e3:.3g} mm" in err and f"`{first}`" in err
     assert "hint: a smaller step, or thicker bodies, keeps them apart" in err
     assert (tmp_path / "o" / "trajectory.npz").exists() and (tmp_path / "o" / "events.json").exists()
+
+
+def test_a_slab_of_lead_on_eight_light_boxes_rests_at_its_height(tmp_path, capsys):
+    """The 450 kg slab on eight boxes of 0.26 kg (1760 times lighter): their island is solved whole
+    (capture/newton.py), and the slab rests on the boxes' top faces, its centre at 16 + 5 cm, within 0.15 mm, with no
+    contact 0.15 mm deep (it sank several mm into them, exit 3, before)."""
+    scene = scene_file(tmp_path, CRUSH, "crush.isaac")
+    code, out, err = run_cli(capsys, "run", scene, "--out", tmp_path / "o", "--no-viewer")
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert code == 0 and report["contact"]["islands_solved_whole"] > 0 and report["contact"]["deepest"] < 1.5e-4
+    with np.load(tmp_path / "o" / "trajectory.npz") as run:
+        slab = run["position"][-1, -1]
+        assert abs(slab[1] - 0.21) < 1.5e-4 and np.abs(run["linear_velocity"][-1, -1]).max() < 1e-3
+
+
+def test_verbose_says_which_contact_path_the_run_took_and_why(tmp_path, capsys):
+    scene = scene_file(tmp_path, CRUSH, "crush.isaac")
+    code, out, err = run_cli(capsys, "run", "-v", scene, "--out", tmp_path / "o", "--no-viewer")
+    said = [line for line in out.splitlines() if line.startswith("contacts: ")]
+    # (the boxes land on one another first)
+    assert code == 0 and len(said) == 1 and said[0].startswith("contacts: the capturing path from t = 0.1")
+    assert "(an impact between moving bodies `b0_0_0` and `b0_0_1`" in said[0] and "islands solved whole" in said[0]
 
 
 def test_a_capturing_run_within_the_depth_limit_is_ok(tmp_path, capsys):
