@@ -402,9 +402,9 @@ def sweep(ct, y):
 @inlined
 def relax(ct, c, y):
     """Contact c's update of a Gauss-Seidel sweep: friction (no slip, within Coulomb's disc of radius mu lam_n),
-    then the normal row (inlined: called with the contacts' named tuple at every contact of every sweep). Its bodies' velocities are read once and written once, in locals between its three rows'
-    updates (`speed` and `push` read and wrote them at every row: the same figures, to the last bit, in less
-    time)."""
+    then the normal row (inlined: called with the contacts' named tuple at every contact of every sweep). Its
+    bodies' velocities are read once and written once, in locals between its three rows' updates (`speed` and
+    `push` read and wrote them at every row: the same figures, to the last bit, in less time)."""
     a, b = ct.a[c], ct.b[c]
     va, wa, vb, wb = _velocities(y, a, b)
     changed = False
