@@ -23,7 +23,8 @@ the Python side when a step finds more than they hold (the step is then taken ag
                step's contacts took an old one's impulses already; match (C,) the old contact whose impulses
                each took (-1: none); group (C,) each contact's island, member (C,) the contacts by island,
                kept (C,3) its island's impulses kept (islands.py); slides (C,) whether it slides in its island's
-               Newton solve (newton.py)
+               Newton solve (newton.py); hit_t (C,2) the tangent rows' impulses of its impact (N s: its friction,
+               solve.py `_rub`)
     Sweep      order (c,) the collidable bodies that are not planes; planes (p,);
                box (n+1,6) each body's world box [lo, hi] grown by its reach over the step; the grid (broad.py):
                cell (n+1,4) each body's cell (x, y, z) and bucket (-1: not in the grid), start (B+1,) where
@@ -54,7 +55,7 @@ FEATURES = 1 << 24
 
 Contacts = namedtuple("Contacts", "count a b point normal depth feature key jac turn inv mass mu bounce lam push "
                                   "before acc old_key old_lam old_acc hit e base approach old_point old_used match runs group "
-                                  "member kept slides")
+                                  "member kept slides hit_t")
 Sweep = namedtuple("Sweep", "order planes box excluded pairs count work struck_in cell start slots fill sorted_box "
                              "frame held")
 Checks = namedtuple("Checks", "worst counts")
@@ -78,7 +79,7 @@ def contacts(capacity: int) -> Contacts:
     # (count[3] -1: no index of last step's contacts yet; every entry of runs is free)
     return Contacts(np.array([0, 0, 0, -1], np.int64), i(), i(), v(), v(), f(), i(), i(), np.zeros((c, 3, 9)), np.zeros((c, 3, 6)),
                     np.zeros((c, 2)), v(), f(), f(), v(), f(), v(), f(), i(), v(), f(), f(), f(), f(), f(), v(), i(),
-                    i(), np.zeros((1 << (2 * c - 1).bit_length(), 4), np.int64), i(), i(), v(), i())
+                    i(), np.zeros((1 << (2 * c - 1).bit_length(), 4), np.int64), i(), i(), v(), i(), np.zeros((c, 2)))
 
 
 def grown(old: Contacts, capacity: int) -> Contacts:
