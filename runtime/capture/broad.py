@@ -73,12 +73,19 @@ def body_reach(shapes, parts, i):
 
 
 @kernel
-def travel(shapes, i, y, h, parts):
+def travel(shapes, i, y, h, parts, floor):
     """How far any point of body i may move in a step of h: SPECULATION (|v| + |w| reach) h at its present
-    velocities (the step's impulses may send it off faster than it came)."""
+    velocities (the step's impulses may send it off faster than it came), the speed of its farthest point at least
+    floor[i] (m/s: set when this step's impacts sent it faster, loop.py `_outran`)."""
+    return SPECULATION * max(point_speed(shapes, i, y, parts), floor[i]) * h
+
+
+@kernel
+def point_speed(shapes, i, y, parts):
+    """|v| + |w| reach of body i: the speed of its farthest point at most (m/s)."""
     v = math.sqrt(y[i, 7] ** 2 + y[i, 8] ** 2 + y[i, 9] ** 2)
     w = math.sqrt(y[i, 10] ** 2 + y[i, 11] ** 2 + y[i, 12] ** 2)
-    return SPECULATION * (v + w * body_reach(shapes, parts, i)) * h
+    return v + w * body_reach(shapes, parts, i)
 
 
 @kernel
@@ -87,7 +94,7 @@ def _boxes(shapes, sw, y, R, h, margin, parts, poses):
     union of its parts' boxes, poses.box[i])."""
     for idx in range(len(sw.order)):
         i = sw.order[idx]
-        grow = margin + travel(shapes, i, y, h, parts)
+        grow = margin + travel(shapes, i, y, h, parts, sw.reach)
         if parts.count[i] > 0:
             for k in range(3):
                 sw.box[i, k], sw.box[i, 3 + k] = poses.box[i, k] - grow, poses.box[i, 3 + k] + grow
@@ -138,18 +145,39 @@ def _plane_pairs(shapes, sw, dynamic, n, y, R):
     """Every body whose box reaches below a plane's surface (the box's lowest corner along the plane's normal)."""
     for p_idx in range(len(sw.planes)):
         p = sw.planes[p_idx]
-        nx = R[p, 0, 0] * shapes.normal[p, 0] + R[p, 0, 1] * shapes.normal[p, 1] + R[p, 0, 2] * shapes.normal[p, 2]
-        ny = R[p, 1, 0] * shapes.normal[p, 0] + R[p, 1, 1] * shapes.normal[p, 1] + R[p, 1, 2] * shapes.normal[p, 2]
-        nz = R[p, 2, 0] * shapes.normal[p, 0] + R[p, 2, 1] * shapes.normal[p, 1] + R[p, 2, 2] * shapes.normal[p, 2]
         for idx in range(len(sw.order)):
             i = sw.order[idx]
-            box = sw.box[i]
-            # the box's corner lowest along N: centre . N - sum |N_k| half_k, measured from the plane's point
-            cx, cy, cz = 0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])
-            low = (nx * (cx - y[p, 0]) + ny * (cy - y[p, 1]) + nz * (cz - y[p, 2])
-                   - 0.5 * (abs(nx) * (box[3] - box[0]) + abs(ny) * (box[4] - box[1]) + abs(nz) * (box[5] - box[2])))
-            if low <= 0.0:
+            if _lowest(shapes, y, R, p, sw.box[i], 0.0) <= 0.0:
                 _add_pair(sw, dynamic, n, i, p)
+
+
+@kernel
+def _lowest(shapes, y, R, p, box, extra):
+    """How far the corner of box ([lo, hi]) grown by `extra` on every side that is lowest along plane p's normal N
+    lies above its surface: centre . N - sum |N_k| (half_k + extra), from the plane's point (m)."""
+    nx = R[p, 0, 0] * shapes.normal[p, 0] + R[p, 0, 1] * shapes.normal[p, 1] + R[p, 0, 2] * shapes.normal[p, 2]
+    ny = R[p, 1, 0] * shapes.normal[p, 0] + R[p, 1, 1] * shapes.normal[p, 1] + R[p, 1, 2] * shapes.normal[p, 2]
+    nz = R[p, 2, 0] * shapes.normal[p, 0] + R[p, 2, 1] * shapes.normal[p, 1] + R[p, 2, 2] * shapes.normal[p, 2]
+    cx, cy, cz = 0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])
+    low = (nx * (cx - y[p, 0]) + ny * (cy - y[p, 1]) + nz * (cz - y[p, 2])
+           - 0.5 * (abs(nx) * (box[3] - box[0]) + abs(ny) * (box[4] - box[1]) + abs(nz) * (box[5] - box[2])))
+    return low - extra * (abs(nx) + abs(ny) + abs(nz))
+
+
+@kernel
+def meets_more(shapes, sw, y, R, b, extra):
+    """Whether body b's box (this step's, sw.box) grown by `extra` more (m) on every side meets a body's box or a
+    plane's half-space that it did not meet: a candidate pair that the broad phase would find now."""
+    box = sw.box[b]
+    for idx in range(len(sw.order)):
+        c = sw.order[idx]
+        if c != b and not _meet(box, sw.box[c]) and _meet_grown(box, sw.box[c], extra):
+            return True
+    for p_idx in range(len(sw.planes)):
+        p = sw.planes[p_idx]
+        if _lowest(shapes, y, R, p, box, 0.0) > 0.0 and _lowest(shapes, y, R, p, box, extra) <= 0.0:
+            return True
+    return False
 
 
 # a body whose box is wider than this many times the mean box is not in the grid (module docstring)
@@ -258,6 +286,13 @@ def _hash_bodies(sw, cell, big):
 def _meet(p, q):
     """Whether the boxes p and q ([lo, hi], (6,)) overlap."""
     return not (q[0] > p[3] or p[0] > q[3] or q[1] > p[4] or p[1] > q[4] or q[2] > p[5] or p[2] > q[5])
+
+
+@kernel
+def _meet_grown(p, q, extra):
+    """Whether box p grown by `extra` on every side overlaps box q."""
+    return not (q[0] > p[3] + extra or p[0] - extra > q[3] or q[1] > p[4] + extra or p[1] - extra > q[4]
+                or q[2] > p[5] + extra or p[2] - extra > q[5])
 
 
 @kernel

@@ -34,7 +34,9 @@ the Python side when a step finds more than they hold (the step is then taken ag
                pair keys a * n + b (a < b) that never collide now; pairs (P,2), count (1,) the candidate pairs;
                work (16,4) the narrow phase's scratch (box-box clipping); struck_in (n+1,) the impact
                generation that last struck each body (solve.py impacts); held (n+1,) whether an active joint row
-               joins each body to another moving body (valid while the scene has joints: loop.py `_mark_held`)
+               joins each body to another moving body (valid while the scene has joints: loop.py `_mark_held`);
+               reach (n+1,) a floor on each body's speed in its travel this step (m/s; 0 but where the step's
+               impacts sent it farther than its contacts were found for: loop.py `_outran`)
     Checks     worst (8,) float: [0] deepest interpenetration (m), [1] its time, [2] its body a, [3] b,
                [4] largest energy a step's contact impulses created (J), [5] its time, [6] a, [7] b;
                counts (5,) int: [0] steps that found interpenetration over the limit, [1] steps whose contact
@@ -57,7 +59,7 @@ Contacts = namedtuple("Contacts", "count a b point normal depth feature key jac 
                                   "before acc old_key old_lam old_acc hit e base approach old_point old_used match runs group "
                                   "member kept slides hit_t")
 Sweep = namedtuple("Sweep", "order planes box excluded pairs count work struck_in cell start slots fill sorted_box "
-                             "frame held")
+                             "frame held reach")
 Checks = namedtuple("Checks", "worst counts")
 Islands = namedtuple("Islands", "parent first fill rows dense rhs y local order step grad")
 # the joints' rows (joints.py), by global row: lam (M,) impulse of the last step, mass (M,), target (M,) velocity
@@ -99,7 +101,7 @@ def sweep(order, planes, n: int, excluded, capacity: int) -> Sweep:
                  np.ascontiguousarray(np.sort(excluded), np.int64), np.zeros((max(int(capacity), 16), 2), np.int64),
                  np.zeros(1, np.int64), np.zeros((16, 4)), np.zeros(n + 1, np.int64), np.zeros((n + 1, 4), np.int64),
                  np.zeros(buckets + 1, np.int64), np.zeros(c, np.int64), np.zeros(buckets, np.int64), np.zeros((c, 6)),
-                 np.zeros(7, np.int64), np.zeros(n + 1, np.bool_))
+                 np.zeros(7, np.int64), np.zeros(n + 1, np.bool_), np.zeros(n + 1))
 
 
 def joint_rows(rows: int) -> JointRows:

@@ -71,6 +71,26 @@ def test_a_row_of_balls_passes_the_strikers_momentum_to_the_last(capture):
     assert abs(v[-1] - 1.0) < 0.01 and np.all(np.abs(v[:-1]) < 0.01), v
 
 
+@pytest.mark.parametrize("solver", ["dynamics { integrator rk4  step 2 ms }", "dynamics { integrator rk4  step 4 ms }",
+                                    "procedural { step 4 ms  substeps 1 }"])
+def test_a_row_of_balls_apart_passes_the_strikers_momentum_across_its_gaps(solver):
+    # gaps of 1 mm, which a struck ball crosses within a step (1.5 m/s: 3 and 6 mm a step): each impact sends the
+    # next ball into a pair that was not found at the step's start, so the step's contacts are found again
+    # (capture/loop.py `_outran`; without it, 2.3 and 4.7 mm deep, exit 3); e = 1, so the last ball leaves with
+    # the striker's speed and the others stay
+    balls = "".join(f"  body b{i} sphere {{ radius 4 cm  material m  at ({0.081 * i:.3f}, 0, 0) m }}\n" for i in range(4))
+    sim = Simulation.from_text(
+        "scene s {\n  time 0 s .. 0.4 s\n  gravity (0, 0, 0) m/s2\n"
+        f"  solver {solver}\n  material m {{ density 1000 kg/m3  friction 0.1  restitution 1 }}\n"
+        "  body striker sphere { radius 4 cm  material m  at (-0.3, 0, 0) m  velocity (1.5, 0, 0) m/s }\n"
+        f"{balls}}}\n")
+    sim.switch_to_capture("test")
+    sim.advance_to(0.4)
+    v = sim.state.y[:-1, 7]
+    assert v[-1] == pytest.approx(1.5, rel=0.01) and np.all(np.abs(v[:-1]) < 0.015), v
+    assert sim.contact_report()["deepest"] < 1e-3
+
+
 BOX = "size (0.2, 0.2, 0.2) m  material m"
 
 
