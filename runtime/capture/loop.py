@@ -346,7 +346,8 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
     _kick(m.bodies, s, y, h)
     place(parts, poses, y, s.R, sw.order)
     # the step's contacts and impacts, found again while the impacts send a body farther than its contacts were
-    # found for (`_outran`); pseudo keeps the velocities of the kick meanwhile (the position pass's, later)
+    # found for (`_outran`); pseudo keeps the velocities of the kick meanwhile, and for the islands solved whole
+    # (their energy before the step's impulses), until the position pass takes it
     copy_state(y, pseudo)
     for b in range(len(sw.reach)):
         sw.reach[b] = 0.0
@@ -374,7 +375,7 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, mats, y, table, j, grid
             sweep_joints(m, act, s, s.inv_inertia, jt, y)
         sweep(ct, y)
     if not jointed:
-        chk.counts[4] += solve_islands(m.bodies, s.R, ct, y, isl)
+        chk.counts[4] += solve_islands(m.bodies, s.R, ct, y, pseudo, isl)
     _check(ct, chk, y, t, depth_limit, energy_tol)
     for c in range(found):
         ct.acc[c] += ct.lam[c, 0] + ct.hit[c]
