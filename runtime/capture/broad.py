@@ -285,7 +285,7 @@ def _hash_bodies(sw, cell, big):
 @kernel
 def _meet(p, q):
     """Whether the boxes p and q ([lo, hi], (6,)) overlap."""
-    return not (q[0] > p[3] or p[0] > q[3] or q[1] > p[4] or p[1] > q[4] or q[2] > p[5] or p[2] > q[5])
+    return _meet_grown(p, q, 0.0)
 
 
 @kernel

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 
-from ..core.bodies import spin_energy
+from ..core.bodies import kinetic
 from ..core.build import MASS_RATIO
 from ..core.jit import kernel
 from .newton import STUCK, cholesky_solve, solve_island
@@ -238,8 +238,7 @@ def _kinetic(bodies, R, ct, v, isl, first, end):
         for b in (ct.a[c], ct.b[c]):
             if bodies.dynamic[b] and isl.local[b] < 0:
                 isl.local[b] = 0
-                speed2 = v[b, 7] ** 2 + v[b, 8] ** 2 + v[b, 9] ** 2
-                total += 0.5 * (bodies.mass[b] * speed2 + spin_energy(R, bodies.inertia, v, b))
+                total += kinetic(bodies, R, v, b)
     for i in range(first, end):
         c = ct.member[i]
         isl.local[ct.a[c]], isl.local[ct.b[c]] = -1, -1

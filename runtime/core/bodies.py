@@ -72,6 +72,13 @@ def spin_energy(R, inertia, y, b):
 
 
 @kernel
+def kinetic(bodies, R, y, b):
+    """Body b's kinetic energy (R current): 1/2 m v^2 + 1/2 w . I w."""
+    speed2 = y[b, 7] ** 2 + y[b, 8] ** 2 + y[b, 9] ** 2
+    return 0.5 * (bodies.mass[b] * speed2 + spin_energy(R, bodies.inertia, y, b))
+
+
+@kernel
 def energy(bodies, R, y):
     """Kinetic plus gravitational potential energy of the dynamic bodies (R current):
     E = sum 1/2 m v^2 + 1/2 w . I w - m g . x."""
@@ -79,9 +86,8 @@ def energy(bodies, R, y):
     for b in range(len(y) - 1):
         if not bodies.dynamic[b]:
             continue
-        speed2 = y[b, 7] ** 2 + y[b, 8] ** 2 + y[b, 9] ** 2
         height = bodies.weight[b, 0] * y[b, 0] + bodies.weight[b, 1] * y[b, 1] + bodies.weight[b, 2] * y[b, 2]
-        total += 0.5 * (bodies.mass[b] * speed2 + spin_energy(R, bodies.inertia, y, b)) - height
+        total += kinetic(bodies, R, y, b) - height
     return total
 
 
