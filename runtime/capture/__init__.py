@@ -106,6 +106,8 @@ class CaptureStage:
         self.joints = D.joint_rows(len(sim.compiled.model.constraints.row_instance))
         self.events = D.events(8192)
         self.pseudo = np.zeros((n + 1, 13))
+        self.kicked = np.zeros((n + 1, 13))  # (a step's velocities after its forces, before its impulses)
+        self.struck = np.zeros((n + 1, 13))  # (... after its impacts, before the rest of its solve)
         self.held = np.zeros((n + 1, 13))  # (the state at a step's start, while the loop takes it in parts)
         self.materials = D.Materials(*_materials(cp, n))
         self.parts, self.poses = _compounds(cp, n)
@@ -179,7 +181,8 @@ class CaptureStage:
                 "steps_too_deep": int(c[0]), "depth_limit": DEPTH_LIMIT,
                 "energy_created": float(w[4]), "energy_created_time": float(w[5]),
                 "energy_created_pair": [names[int(w[6])], names[int(w[7])]] if w[4] > 0 else [],
-                "steps_creating_energy": int(c[1]), "islands_solved_whole": int(c[4])}
+                "steps_creating_energy": int(c[1]), "islands_solved_whole": int(c[4]),
+                "solves_taken_again": int(c[5])}
 
 
 def can_bounce(cp) -> bool:
@@ -264,9 +267,9 @@ class CaptureStepper:
             later = frame_at[first:] - done
             part = frames._replace(**{name: getattr(frames, name)[first:] for name in _PER_FRAME})
             taken = self._run(c.model, act, c.scratch, st.contacts, st.sweep, st.joints, st.checks, st.events, st.pseudo,
-                              st.held, st.materials, y, table[done * self.grid:], hs, total - done, self.grid, later, part,
-                              status, self.resting, DEPTH_LIMIT, self.energy_tol, st.parts, st.poses, self.touch,
-                              st.islands)
+                              st.kicked, st.struck, st.held, st.materials, y, table[done * self.grid:], hs, total - done,
+                              self.grid, later, part, status, self.resting, DEPTH_LIMIT, self.energy_tol, st.parts,
+                              st.poses, self.touch, st.islands)
             st.drain()
             first += int(np.count_nonzero(later <= taken))
             done += taken

@@ -39,9 +39,10 @@ the Python side when a step finds more than they hold (the step is then taken ag
                impacts sent it farther than its contacts were found for: loop.py `_outran`)
     Checks     worst (8,) float: [0] deepest interpenetration (m), [1] its time, [2] its body a, [3] b,
                [4] largest energy a step's contact impulses created (J), [5] its time, [6] a, [7] b;
-               counts (5,) int: [0] steps that found interpenetration over the limit, [1] steps whose contact
+               counts (6,) int: [0] steps that found interpenetration over the limit, [1] steps whose contact
                impulses created energy over the tolerance, [2] contacts solved (sum over steps), [3] steps,
-               [4] islands solved whole (islands.py; sum over steps)
+               [4] islands solved whole (islands.py; sum over steps), [5] steps whose solve was taken again
+               (loop.py `_warm_again`)
     Islands    parent (n+1,), first (n+2,), fill (n+1,) int; rows (R,) int, dense (R,R), rhs (R,); y (n+1,13) an
                island's velocities kept: islands.py; local (n+1,) int, order (R/6,) int, step (n+1,13), grad (R,):
                newton.py
@@ -110,7 +111,7 @@ def joint_rows(rows: int) -> JointRows:
 
 
 def checks() -> Checks:
-    return Checks(np.zeros(8), np.zeros(5, np.int64))
+    return Checks(np.zeros(8), np.zeros(6, np.int64))
 
 
 def islands(n: int, rows: int) -> Islands:
