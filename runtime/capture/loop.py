@@ -223,8 +223,9 @@ def _pair_events(ct, ev, t, h, pressing):
 
 
 @kernel
-def _check(ct, chk, y, t, depth_limit, energy_tol):
-    """The step's checks (data.py Checks): the deepest contact, and the energy its impulses created."""
+def _check(ct, chk, t, depth_limit, energy_tol, created, most):
+    """The step's checks (data.py Checks): the deepest contact, and the energy its impulses created (created, J;
+    most: the contact that created the most, solve.py `work`)."""
     chk.counts[2] += ct.count[0]
     chk.counts[3] += 1
     deepest, which = 0.0, -1
@@ -235,7 +236,6 @@ def _check(ct, chk, y, t, depth_limit, energy_tol):
         chk.counts[0] += 1
     if deepest > chk.worst[0]:
         chk.worst[0], chk.worst[1], chk.worst[2], chk.worst[3] = deepest, t, ct.a[which], ct.b[which]
-    created, most = work(ct, y)
     if created > energy_tol:
         chk.counts[1] += 1
     if created > chk.worst[4] and most >= 0:
@@ -430,12 +430,14 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, kicked, struck, mats, y
         warm_start_joints(m, act, s, s.inv_inertia, jt, y)
     warm_start(ct, y)
     chk.counts[4] += _solve_velocities(m, act, s, ct, jt, isl, y, kicked, jointed)
-    if work(ct, y)[0] > energy_tol:
+    created, most = work(ct, y)
+    if created > energy_tol:
         copy_state(struck, y)
         _warm_again(m.bodies, s.R, act, ct, jt, y, energy_tol)
         chk.counts[4] += _solve_velocities(m, act, s, ct, jt, isl, y, kicked, jointed)
         chk.counts[5] += 1
-    _check(ct, chk, y, t, depth_limit, energy_tol)
+        created, most = work(ct, y)
+    _check(ct, chk, t, depth_limit, energy_tol, created, most)
     for c in range(found):
         ct.acc[c] += ct.lam[c, 0] + ct.hit[c]
     _pair_events(ct, ev, t, h, False)
