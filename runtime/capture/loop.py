@@ -421,10 +421,10 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, kicked, struck, mats, y
         copy_state(kicked, y)
     # the solve, warm-started from the last step's impulses; one whose impulses created energy is taken again from
     # the impacts' velocities (struck) with only so much of them as lowers the energy (`_warm_again`). Contacts keep
-    # their impulses from where they were: in a light wall struck by a ball ten times heavier, a step found one more
-    # contact, and its 117 others' impulses, large and balanced among the bricks the step before, raised their
-    # energy from 44 J to 2234 J; the sweeps brought back all but 12 J (found 2026-12-07). Taken again with none of
-    # them, a column of 15 steel balls landing in a tube sank 0.36 mm, where it had sunk 0.18 mm
+    # their impulses from where they were: in a light wall struck by a ball ten times heavier, the impulses of the
+    # step before, large among the bricks, raised the energy of a step's 118 contacts' bodies from 44 J to 2234 J;
+    # the sweeps brought back all but 12 J (found 2026-12-07). Taken again with none of them, a column of 15 steel
+    # balls landing in a tube sank 0.36 mm, and 0.26 mm with them scaled
     copy_state(y, struck)
     if jointed:
         warm_start_joints(m, act, s, s.inv_inertia, jt, y)

@@ -131,11 +131,10 @@ def _wall(plan: str) -> str:
 
 @pytest.mark.parametrize("plan", ["solver dynamics { integrator rk4  step 1 ms }", "solver procedural { step 4 ms }"])
 def test_a_light_wall_struck_by_a_heavy_ball_gains_no_energy(plan):
-    """Found 2026-12-07: a step that found one contact more took the others' impulses of the step before as its
-    warm start; large and balanced among the bricks then, they raised the bricks' energy from 44 J to 2234 J, and
-    the sweeps took back all but 12 J (4.6 J in the dynamics plan): exit 0, a rise of 10 to 24 % of the energy
-    available. A solve whose impulses create energy is now taken again with only so much of the warm start as lowers
-    the energy (capture/loop.py `_warm_again`)."""
+    """Found 2026-12-07: at one step the warm start (the impulses of the step before) raised the bricks' energy
+    from 44 J to 2234 J, and the sweeps took back all but 12 J (4.6 J in the dynamics plan): exit 0, a rise of 10
+    to 24 % of the energy available. A solve whose impulses create energy is now taken again with only so much
+    of the warm start as lowers the energy (capture/loop.py `_warm_again`)."""
     sim, energy = _run(_wall(plan), 0.4)
     report = sim.contact_report()
     assert report["path"] == "capturing"
