@@ -350,4 +350,5 @@ def separate_islands(bodies, R, ct, pseudo, y, h, isl):
     """The position pass's islands (grouped by `solve_islands` this step) that its sweeps left unsolved, solved
     whole as the velocities are: a heavy capsule on a light cube was pushed out of it by moving the cube into the
     floor, and sank 14 mm in 0.5 s with every velocity row met. Returns how many were."""
+    # (kicked: y, which the position pass never reads)
     return _solve_whole(bodies, R, ct, pseudo, y, h, isl, True, y)

@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import math
 
-from ..core.bodies import copy_state, energy, place_kinematic, rotations, runaway_body, turn, world_inverse_inertia
+from ..core.bodies import (copy_state, energy, kinetic, place_kinematic, rotations, runaway_body, turn,
+                           world_inverse_inertia)
 from ..core.forces import step_forces
 from ..core.free_rotation import free_rotation
 from ..core.jit import entry, kernel
@@ -41,7 +42,7 @@ from .islands import separate_islands, solve_islands
 from .narrow import pair_contacts
 from .joints import close_joints, prepare_joints, sweep_joints, warm_start_joints
 from .solve import (POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, keep_old, prepare, push, separate,
-                    sweep, warm_start, work)
+                    sweep, take_old, warm_start, work)
 
 GROW, DRAIN = 4, 5
 # a step whose bodies in contact turn fast is taken in parts (`_split`): the farthest point of a body that is not
@@ -265,22 +266,30 @@ def _warm_again(bodies, R, act, ct, jt, y, tol):
     for i in range(len(act.rows)):
         jt.lam[act.rows[i]] = 0.0
     for c in range(ct.count[0]):
-        old = ct.match[c]
-        for row in range(3):
-            ct.lam[c, row] = ct.old_lam[old, row] if old >= 0 else 0.0
-    before = energy(bodies, R, y)
+        take_old(ct, c)
+    before = _kinetic_sum(bodies, R, y)
     warm_start(ct, y)
-    whole = energy(bodies, R, y)
+    whole = _kinetic_sum(bodies, R, y)
     _scale_warm_start(ct, y, 0.5)
     if whole <= before + tol:
         _scale_warm_start(ct, y, 0.0)
         return
-    half = energy(bodies, R, y)
+    half = _kinetic_sum(bodies, R, y)
     # E(k) = E0 + a k + b k^2 through E(0), E(1/2), E(1)
     b = 2.0 * (whole - 2.0 * half + before)
     a = whole - before - b
     keep = min(1.0, max(0.0, -a / (2.0 * b))) if b > 0.0 else 0.0
     _scale_warm_start(ct, y, 2.0 * keep)
+
+
+@kernel
+def _kinetic_sum(bodies, R, y):
+    """The kinetic energy of the dynamic bodies (J): all that the warm start's impulses change."""
+    total = 0.0
+    for b in range(len(y) - 1):
+        if bodies.dynamic[b]:
+            total += kinetic(bodies, R, y, b)
+    return total
 
 
 @kernel

@@ -171,8 +171,15 @@ def prepare(bodies, invI, ct, y, n, h):
     for c in range(count):
         old = ct.match[c]
         ct.acc[c] = ct.old_acc[old] if old >= 0 else 0.0
-        for row in range(3):
-            ct.lam[c, row] = ct.old_lam[old, row] if old >= 0 else 0.0
+        take_old(ct, c)
+
+
+@kernel
+def take_old(ct, c):
+    """Contact c's impulses <- those its match (`prepare`) held at the last step's end, or none: its warm start."""
+    old = ct.match[c]
+    for row in range(3):
+        ct.lam[c, row] = ct.old_lam[old, row] if old >= 0 else 0.0
 
 
 @kernel
