@@ -35,7 +35,7 @@ from ..core.bodies import kinetic
 from ..core.build import MASS_RATIO
 from ..core.jit import kernel
 from .newton import STUCK, cholesky_solve, solve_island
-from .solve import MOVED, contact_work, push, separate_one, speed
+from .solve import MOVED, VELOCITY_SWEEPS, contact_work, push, separate_one, speed, sweep_island
 
 # an island whose rows miss their targets by more than this after the position pass's sweeps is solved whole (m/s
 # of pseudo-velocity): 1 % of what gravity adds to a speed in a step of 1 ms
@@ -338,16 +338,30 @@ def _solve_whole(bodies, R, ct, v, y, h, isl, positions, kicked):
 
 
 @kernel
+def sweep_islands(dynamic, ct, y, isl, regroup):
+    """The velocity sweeps of a scene without joints, island by island (grouped first when regroup: `_group`),
+    each island's ended at the first that leaves its rows' speeds as they were within solve.py SETTLED, VELOCITY_SWEEPS
+    at most: the same updates in the same order as sweeps over all the contacts, since no two islands share a
+    moving body, and none for an island that has settled."""
+    if regroup:
+        _group(dynamic, ct, isl)
+    for g in range(len(isl.parent)):
+        first, end = isl.first[g], isl.first[g + 1]
+        for _ in range(VELOCITY_SWEEPS if end > first else 0):
+            if not sweep_island(ct, y, first, end):
+                break
+
+
+@kernel
 def solve_islands(bodies, R, ct, y, kicked, isl):
-    """The step's islands grouped (`_group`), and each that its velocity sweeps left unsolved solved whole
+    """Each of the step's islands (grouped by `sweep_islands`) that its velocity sweeps left unsolved, solved whole
     (`_solve_whole`; kicked: the velocities before the step's impulses). Returns how many were."""
-    _group(bodies.dynamic, ct, isl)
     return _solve_whole(bodies, R, ct, y, y, 0.0, isl, False, kicked)
 
 
 @kernel
 def separate_islands(bodies, R, ct, pseudo, y, h, isl):
-    """The position pass's islands (grouped by `solve_islands` this step) that its sweeps left unsolved, solved
+    """The position pass's islands (grouped by `sweep_islands` this step) that its sweeps left unsolved, solved
     whole as the velocities are: a heavy capsule on a light cube was pushed out of it by moving the cube into the
     floor, and sank 14 mm in 0.5 s with every velocity row met. Returns how many were."""
     # (kicked: y, which the position pass never reads)

@@ -10,7 +10,9 @@ Moreau-Jean):
     3. the contact solve (solve.py): impacts in generations, then impulses so that v+ meets the contacts (friction
        included) and the joints' rows (joints.py), one Gauss-Seidel sweep over both after another, warm-started
        (the last step's impulses applied after the impacts, which are struck from the velocities of the forces);
-       a solve whose impulses created energy is taken again with only so much of the warm start as lowers the energy
+       a solve whose impulses created energy is taken again with only so much of the warm start as lowers the energy.
+       In a scene without joints the sweeps go island by island, each island's ending once they change nothing
+       (islands.py `sweep_islands`)
     4. x += h v+ (a body whose velocity changed smoothly: the mean, h (v + v+) / 2, `_drift`); the free rotation
        of w+ over h (energy-keeping, procedural/substep.py); the position pass's
        pseudo-velocities move the positions only (drift); the joints projected back on their manifold as the exact
@@ -38,7 +40,7 @@ from ..core.model import SHAPE_SPHERE
 from .broad import SPECULATION, body_reach, find_pairs, meets_more, point_speed, travel
 from .compound import Found, fold, material_of, place, pose, posed_contacts
 from .data import IMPACT, PRESSING
-from .islands import separate_islands, solve_islands
+from .islands import separate_islands, solve_islands, sweep_islands
 from .narrow import pair_contacts
 from .joints import close_joints, prepare_joints, sweep_joints, warm_start_joints
 from .solve import (POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, keep_old, prepare, push, separate,
@@ -244,15 +246,16 @@ def _check(ct, chk, t, depth_limit, energy_tol, created, most):
 
 
 @kernel
-def _solve_velocities(m, act, s, ct, jt, isl, y, kicked, jointed):
-    """The sweeps over the contacts and the joints' rows from the impulses they hold, then the islands solved whole
-    (scenes without joints); returns how many were."""
-    for _ in range(VELOCITY_SWEEPS):
-        if jointed:
-            sweep_joints(m, act, s, s.inv_inertia, jt, y)
-        sweep(ct, y)
+def _solve_velocities(m, act, s, ct, jt, isl, y, kicked, jointed, again):
+    """The sweeps over the contacts and the joints' rows from the impulses they hold; in a scene without joints,
+    island by island (grouped unless `again`: the step's solve taken again), then the islands solved whole. Returns
+    how many were."""
     if jointed:
+        for _ in range(VELOCITY_SWEEPS):
+            sweep_joints(m, act, s, s.inv_inertia, jt, y)
+            sweep(ct, y)
         return 0
+    sweep_islands(m.bodies.dynamic, ct, y, isl, not again)
     return solve_islands(m.bodies, s.R, ct, y, kicked, isl)
 
 
@@ -438,12 +441,12 @@ def capture_step(m, act, s, ct, sw, jt, chk, ev, pseudo, kicked, struck, mats, y
     if jointed:
         warm_start_joints(m, act, s, s.inv_inertia, jt, y)
     warm_start(ct, y)
-    chk.counts[4] += _solve_velocities(m, act, s, ct, jt, isl, y, kicked, jointed)
+    chk.counts[4] += _solve_velocities(m, act, s, ct, jt, isl, y, kicked, jointed, False)
     created, most = work(ct, y)
     if created > energy_tol:
         copy_state(struck, y)
         _warm_again(m.bodies, s.R, act, ct, jt, y, energy_tol)
-        chk.counts[4] += _solve_velocities(m, act, s, ct, jt, isl, y, kicked, jointed)
+        chk.counts[4] += _solve_velocities(m, act, s, ct, jt, isl, y, kicked, jointed, True)
         chk.counts[5] += 1
         created, most = work(ct, y)
     _check(ct, chk, t, depth_limit, energy_tol, created, most)
