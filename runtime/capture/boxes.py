@@ -26,6 +26,12 @@ from ..core.vec import add3, cross3, dot3, rotate, rotate_t, row3, scale3, sub3
 from .common import clamp, clip_line, col3, emit, plane_of, point_box, segment, sign, unit3
 
 EDGE_PREFERENCE = 1e-3
+# ... and, where the edges touch or overlap, only if their common normal is farther than 8 degrees from the best
+# face normal of either box: crossed edges nearer than that lie almost flat in that face, and their contact is the
+# face's (clipped: up to four points, each no deeper than the boxes overlap).
+# One point under a box resting on another, 2 degrees apart, let it rock onto corners that no contact held: a
+# column of 15 turned boxes dropped onto one another sank 13.6 mm into itself in 1.2 s
+FLAT_EDGES = math.cos(math.radians(8.0))
 # edge-edge axes of nearly parallel edges (|a_i x b_j| below this) are skipped: a face axis covers them
 PARALLEL_EDGES = 1e-6
 EDGE = 72 * 64
@@ -196,13 +202,27 @@ def box_box(shapes, a, b, y, R, sink, work):
     if max(best, fe) > sink[6]:  # apart by more than the margin (written only with margin = inf)
         n = toward(col3(R, a, ia), d)
         return emit(sink, 0, scale3(0.5, add3(row3(y, a, 0), row3(y, b, 0))), n, -max(best, fe), APART)
-    if fe > best + tol:
+    edge = fe > best + tol
+    if edge and (fe > 0.0 or not _flat(R, a, b, ia, ib, ie, je)):
         return edge_contact(shapes, a, b, y, R, sink, ie, je, fe)
+    # (crossed edges that touch lying flat: the face's points, each no deeper than the boxes overlap, -fe; or the
+    # edges' point when no point of the incident face is on the face)
+    cap = -fe if edge else math.inf
     if fb > fa + tol:  # the reference face is b's, facing a (along n); a's face is clipped against it
         n = toward(col3(R, b, ib), d)
-        return face_contact(shapes, b, a, ib, n, n, y, R, sink, work, 1, best)
-    n = toward(col3(R, a, ia), d)
-    return face_contact(shapes, a, b, ia, scale3(-1.0, n), n, y, R, sink, work, 0, best)
+        count = face_contact(shapes, b, a, ib, n, n, y, R, sink, work, 1, best, cap)
+    else:
+        n = toward(col3(R, a, ia), d)
+        count = face_contact(shapes, a, b, ia, scale3(-1.0, n), n, y, R, sink, work, 0, best, cap)
+    return edge_contact(shapes, a, b, y, R, sink, ie, je, fe) if count < 0 else count
+
+
+@kernel
+def _flat(R, a, b, ia, ib, ie, je):
+    """Whether edges a_ie and b_je lie nearly flat in face ia of a or face ib of b: their common normal within
+    FLAT_EDGES of that face's normal."""
+    L = unit3(cross3(col3(R, a, ie), col3(R, b, je)))[0]
+    return max(abs(dot3(L, col3(R, a, ia))), abs(dot3(L, col3(R, b, ib)))) >= FLAT_EDGES
 
 
 @kernel
@@ -212,10 +232,12 @@ def toward(axis, d):
 
 
 @kernel
-def face_contact(shapes, r, o, k, out, n, y, R, sink, work, side, best):
+def face_contact(shapes, r, o, k, out, n, y, R, sink, work, side, best, cap):
     """Box o's incident face clipped against face k of box r, whose outward normal `out` faces o; n (from b
     toward a) is the contacts' normal, side 0 when r is a. A clipped point p is depth -(p - c) . out below the
-    reference face (c its centre), its contact point halfway back up, p + out depth / 2."""
+    reference face (c its centre; written no deeper than cap), its contact point halfway back up,
+    p + out depth / 2. When no point of the incident face lies on the reference face: -1 if cap is finite (crossed
+    edges lying flat: the caller's edge contact), else o's deepest corner."""
     c = add3(row3(y, r, 0), scale3(shapes.half[r, k], out))
     face = 2 * k + (0 if dot3(out, col3(R, r, k)) > 0.0 else 1)
     base = 64 * (6 * (6 * side + face) + incident_face(shapes, o, scale3(-1.0, out), y, R, work))
@@ -235,6 +257,8 @@ def face_contact(shapes, r, o, k, out, n, y, R, sink, work, side, best):
     if m == 0:
         if -best < -sink[6]:
             return 0
+        if cap < math.inf:
+            return -1
         # the incident face lies beside the reference face (a small box deep in a large one): o's deepest corner,
         # x_o + sum_j sign(o_j . -out) h_j o_j
         p = row3(y, o, 0)
@@ -248,7 +272,7 @@ def face_contact(shapes, r, o, k, out, n, y, R, sink, work, side, best):
         if m <= 4 or i == i0 or i == i1 or i == i2 or i == i3:
             p = row3(work, i, 0)
             depth = -dot3(sub3(p, c), out)
-            kept = emit(sink, kept, add3(p, scale3(0.5 * depth, out)), n, depth, base + int(work[i, 3]))
+            kept = emit(sink, kept, add3(p, scale3(0.5 * depth, out)), n, min(depth, cap), base + int(work[i, 3]))
     return kept
 
 

@@ -3,7 +3,8 @@ sphere-box and capsule-box. Conventions as in narrow.py: normals from b toward a
 
 Box-box follows Gottschalk's OBB test for the 15 candidate axes (3 face normals of each box, 9 edge-edge
 cross products) and the reference-face / incident-face clipping of ODE's dBoxBox and Box2D: the axis of least
-penetration wins (a face axis unless an edge axis is clearly better), and the incident face of the other box
+penetration wins (a face axis unless an edge axis is clearly better and its edges do not lie nearly flat in
+the best face), and the incident face of the other box
 is clipped against the side planes of the reference face, which gives up to four points for boxes resting on
 each other, or one point for crossed edges.
 """
@@ -15,6 +16,10 @@ from .shapes import CORNER_SIGNS, segment
 
 # an edge-edge axis wins over the best face axis only if it separates more by this fraction of the smaller box
 EDGE_PREFERENCE = 1e-3
+# ... and, where the edges touch or overlap, only if their common normal is farther than 8 degrees from the best
+# face normal of either box (crossed edges nearer than that lie almost flat in that face: the face's points, each
+# no deeper than the boxes overlap, as runtime/capture/boxes.py FLAT_EDGES)
+FLAT_EDGES = np.cos(np.radians(8.0))
 # edge-edge axes of nearly parallel edges (|a_i x b_j| below this) are skipped: a face axis covers them
 PARALLEL_EDGES = 1e-6
 # most points of one face contact (ODE and Box2D keep four)
@@ -175,7 +180,8 @@ def box_box(table, a, b, x, R, margin):
     separation = max(best, edges[ie])
     if separation > margin or separation == np.inf:
         return _keep(*_one(0.5 * (x[a] + x[b]), _toward(A[:, ia], d), -separation), margin)
-    if edges[ie] > best + tol:
+    edge = edges[ie] > best + tol
+    if edge and (edges[ie] > 0.0 or not _flat(A[:, ie[0]], B[:, ie[1]], A[:, ia], B[:, ib])):
         return _keep(*_edge_contact(A, ha, B, hb, x[a], x[b], ie, edges[ie]), margin)
     if face_b[ib] > face_a[ia] + tol:  # reference face on b, a's face clipped against it
         n = _toward(B[:, ib], d)
@@ -190,10 +196,21 @@ def box_box(table, a, b, x, R, margin):
         incident = _incident_face(B, hb, x[b], n)
         found = _clip_contact(incident, ref_centre, n, A, ha, ia, 1.0, margin)
         support = x[b] + B @ (np.sign(B.T @ n) * hb)
+    if edge and len(found[2]):  # (crossed edges lying flat: the face's points, no deeper than the boxes overlap)
+        return found[0], found[1], np.minimum(found[2], -edges[ie]), found[3]
     if len(found[2]) or -best < -margin:
         return found
+    if edge:  # (crossed edges lying flat, beside the reference face: theirs is the contact)
+        return _keep(*_edge_contact(A, ha, B, hb, x[a], x[b], ie, edges[ie]), margin)
     # the incident face lies beside the reference face (a small box deep in a large one): its deepest corner
     return _one(support, n, -best)
+
+
+def _flat(edge_a, edge_b, face_a, face_b) -> bool:
+    """Whether the crossed edges lie nearly flat in either face: their common normal within FLAT_EDGES of it."""
+    L = np.cross(edge_a, edge_b)
+    L = L / np.linalg.norm(L)
+    return max(abs(L @ face_a), abs(L @ face_b)) >= FLAT_EDGES
 
 
 def _toward(axis, d):

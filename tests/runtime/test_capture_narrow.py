@@ -327,3 +327,24 @@ def test_stacked_boxes_agree_and_keep_their_features():
         same += sorted(f.tolist()) == sorted(f1.tolist())
     print(f"stacked boxes: counts {counts}, max |depth - oracle| {worst:.1e} m, {same}/300 kept their features")
     assert counts.get(4, 0) > 150 and same >= 0.9 * 300
+
+
+def test_a_box_resting_askew_on_a_box_touches_at_several_points_no_deeper_than_they_overlap():
+    # two 10 x 8 x 12 cm boxes as a column of them dropped onto one another left them (one turned 53 degrees about
+    # the vertical and tipped 1.2 degrees), 1 mm into each other: the crossed edges of the two faces separate the
+    # boxes a little more than the faces do (1.50 mm against 1.55 at 1.5 mm deep), and their one point let such a
+    # column rock onto corners that no contact held (it sank 13.6 mm into itself). Lying almost flat in the face,
+    # they take the face's points, each no deeper than the boxes overlap (the separating-axis overlap, computed
+    # independently)
+    from tests.runtime.test_collide import box_overlap
+
+    q = np.array([0.895963, 0.004179, -0.444007, -0.009566])
+    turn = quat_to_matrix(q / np.linalg.norm(q))
+    table, x, R = boxes((0.05, 0.04, 0.06), (0.05, 0.04, 0.06), (0.010574, 0.079544, 0.00619), turn)
+    x = placed(table, x, R, -1e-3)
+    overlap = box_overlap(table, x, R)
+    assert overlap == pytest.approx(1e-3, abs=1e-9)
+    for p, n, d, f, *_ in (compiled(table, 0, 1, x, R), reference(table, 0, 1, x, R)):
+        assert len(d) == 4, d  # (the crossed edges' one point before)
+        assert d.max() == pytest.approx(overlap, abs=1e-9)
+        assert abs(n[0] @ (0.0, 1.0, 0.0)) > math.cos(math.radians(1.5))
