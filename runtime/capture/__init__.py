@@ -6,6 +6,7 @@ the exact path (runtime/collide: each impact located in time, each change of the
     narrow.py   closed-form contact points of a pair (boxes.py: box-box)
     compound.py a pair with a compound body: every pair of parts whose boxes meet, with narrow.py's tests
     solve.py    the velocity-level contact problem, projected Gauss-Seidel, warm-started by feature
+    position.py the position pass: interpenetration removed on pseudo-velocities (split impulses)
     islands.py  the bodies that touch one another, grouped each step; an island of very unequal masses that the
                 sweeps leave unsolved is solved whole (newton.py: its velocities, by Newton's method)
     loop.py     the step: kick, contacts, solve, drift, checks, events, frames

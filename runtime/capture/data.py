@@ -10,7 +10,7 @@ the Python side when a step finds more than they hold (the step is then taken ag
                arms from the centres of mass; turn (C,3,6) a unit impulse's turn of each body (I_a^-1 (r_a x d),
                I_b^-1 (r_b x d)); inv (C,2) 1/m_a, 1/m_b (0: a body impulses do not move); mass (C,3) the
                rows' effective masses; mu, bounce (C,) friction and the normal speed restitution asks for
-               (m/s; in the position pass, its target, NaN until made: solve.py clear); e (C,) the pair's
+               (m/s; in the position pass, its target, NaN until made: position.py clear); e (C,) the pair's
                restitution; base (C,) hit before this generation (in the position pass, the least impulse);
                approach (C,) the fastest it approached when struck (m/s; 0: no impact; < 0: a landing that is
                an impact event without an impact, its normal speed: loop._touchdowns); hit (C,) the normal

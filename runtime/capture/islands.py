@@ -35,7 +35,8 @@ from ..core.bodies import kinetic
 from ..core.build import MASS_RATIO
 from ..core.jit import kernel
 from .newton import STUCK, cholesky_solve, solve_island
-from .solve import MOVED, VELOCITY_SWEEPS, contact_work, push, separate_one, speed, sweep_island
+from .position import separate_one
+from .solve import MOVED, VELOCITY_SWEEPS, contact_work, push, speed, sweep_island
 
 # an island whose rows miss their targets by more than this after the position pass's sweeps is solved whole (m/s
 # of pseudo-velocity): 1 % of what gravity adds to a speed in a step of 1 ms

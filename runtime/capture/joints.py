@@ -7,7 +7,7 @@ joined to, and a contact holds what hangs from a joint:
     lam_r' = lam_r + m_r (0 - u_r),   m_r = 1 / (sum over its bodies of |J_lin|^2 / m + J_ang . I^-1 J_ang)
 
 warm-started from the row's impulse of the last step. What is left of a position row's error C is closed by the
-position pass (solve.py `separate`) with the contacts' depths: pseudo-velocities J_r V~ = -BETA C_r / h, which
+position pass (position.py `separate`) with the contacts' depths: pseudo-velocities J_r V~ = -BETA C_r / h, which
 move positions only, so closing a joint never gives it speed (energy). Data: lam, mass, target (M,) by global row,
 target the position pass's.
 """

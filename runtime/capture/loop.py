@@ -43,8 +43,8 @@ from .data import IMPACT, PRESSING
 from .islands import separate_islands, solve_islands, sweep_islands
 from .narrow import pair_contacts
 from .joints import close_joints, prepare_joints, sweep_joints, warm_start_joints
-from .solve import (POSITION_SWEEPS, VELOCITY_SWEEPS, clear, deep, impacts, keep_old, prepare, push, separate,
-                    sweep, take_old, warm_start, work)
+from .position import POSITION_SWEEPS, clear, deep, separate
+from .solve import VELOCITY_SWEEPS, impacts, keep_old, prepare, push, sweep, take_old, warm_start, work
 
 GROW, DRAIN = 4, 5
 # a step whose bodies in contact turn fast is taken in parts (`_split`): the farthest point of a body that is not

@@ -3,7 +3,7 @@ another, dropped from 10 to 39 cm onto a floor. The exact answer for each: it la
 a fall of d, with the impulse m sqrt(2 g d), and rests on the floor from then on.
 
 A landing is struck in the step that closes its speculative gap, while the sphere is still up to |u| h above the
-floor; the position pass then brings it where the impact at its time puts it (capture/solve.py `clear`). Before
+floor; the position pass then brings it where the impact at its time puts it (capture/position.py `clear`). Before
 that (found 2026-12-06, mended 2026-12-07), restitution 0 stopped it at the gap: at 2.3 m/s and 1 ms 0.99 mm up,
 to fall again for 14 ms and land again (2 or 3 impact events per landing in the dynamics plan, 1 or 2 in the
 procedural)."""
