@@ -1,4 +1,5 @@
-"""Expression trees of the IR, their evaluator and their time derivative. Never `eval`.
+"""Expression trees of the IR, their evaluator and their smart constructors (their time derivative:
+derivative.py). Never `eval`.
 
 A value that changes over time stays a small tree (`Op`, `Call`, `Vec`, `Keys`, `Var("t")`); everything
 else is folded into a `Const` when the scene is lowered. Values are in SI units.
@@ -405,77 +406,17 @@ def _evaluate_numeric_derivative(node: Deriv, env, functions):
     return (f(h) - 2 * f(0.0) + f(-h)) / (h * h)
 
 
-# ---- time derivative -------------------------------------------------------------------------------------
+# ---- smart constructors: fold constants as the tree is built ---------------------------------------------
 
 ZERO = Const(0.0)
 ONE = Const(1.0)
 
 
-def derivative(node: Expr, var: str = "t") -> Expr:
-    """d node / d var as a new tree (exact where the function has a closed form)."""
-    if isinstance(node, (Const, Str)):
-        return _zero_like(node)
-    if isinstance(node, Var):
-        return ONE if node.name == var else ZERO
-    if isinstance(node, Vec):
-        return Vec(tuple(derivative(i, var) for i in node.items))
-    if isinstance(node, Op):
-        return _derivative_op(node, var)
-    if isinstance(node, Keys):
-        return Keys(node.interp, node.times, node.values, node.order + 1)
-    if isinstance(node, Call) and node.fn in _CHAIN_RULES and var not in _kwarg_vars(node):
-        inner = node.args[0]
-        return mul(_CHAIN_RULES[node.fn](inner), derivative(inner, var))
-    if isinstance(node, Deriv):
-        return Deriv(node.arg, node.order + 1)
-    if isinstance(node, Guard):
-        return Guard(derivative(node.arg, var), f"the rate of {node.what}", node.source)
-    if var not in free_vars(node) and not isinstance(node, Call):
-        return _zero_like(node)
-    return Deriv(node, 1)
-
-
-def _kwarg_vars(node: Call) -> frozenset:
-    return frozenset().union(*(free_vars(v) for _, v in node.kwargs)) if node.kwargs else frozenset()
-
-
-def _zero_like(node: Expr) -> Expr:
+def zero_like(node: Expr) -> Expr:
+    """A zero of node's size (a scalar 0 for a scalar or a string)."""
     size = size_of(node) if not isinstance(node, Str) else 0
     return Const(tuple([0.0] * size)) if size else ZERO
 
-
-def _derivative_op(node: Op, var: str) -> Expr:
-    if node.op == "neg":
-        return neg(derivative(node.args[0], var))
-    a, b = node.args
-    da, db = derivative(a, var), derivative(b, var)
-    if node.op == "add":
-        return add(da, db)
-    if node.op == "sub":
-        return sub(da, db)
-    if node.op == "mul":
-        # (ab)' = a'b + ab'
-        return add(mul(da, b), mul(a, db))
-    if node.op == "div":
-        # (a/b)' = (a'b - ab') / b^2
-        return Op("div", (sub(mul(da, b), mul(a, db)), mul(b, b)))
-    if node.op == "pow" and isinstance(b, Const):
-        # (a^n)' = n a^(n-1) a'
-        return mul(mul(b, Op("pow", (a, Const(b.value - 1.0)))), da)
-    return Deriv(node, 1)
-
-
-_CHAIN_RULES = {
-    "sin": lambda u: Call("cos", (u,)),
-    "cos": lambda u: neg(Call("sin", (u,))),
-    "exp": lambda u: Call("exp", (u,)),
-    "log": lambda u: Op("div", (ONE, u)),
-    "sqrt": lambda u: Op("div", (Const(0.5), Call("sqrt", (u,)))),
-    "tan": lambda u: Op("div", (ONE, mul(Call("cos", (u,)), Call("cos", (u,))))),
-}
-
-
-# ---- smart constructors: fold constants as the tree is built ---------------------------------------------
 
 def _is_zero(node: Expr) -> bool:
     return isinstance(node, Const) and not isinstance(node.value, tuple) and node.value == 0.0
@@ -567,7 +508,7 @@ def mul(a: Expr, b: Expr) -> Expr:
         x, y = a.value, b.value
         return ZERO if x == 0.0 or y == 0.0 else b if x == 1.0 else a if y == 1.0 else Const(x * y)
     if (_is_zero(a) or _is_zero(b)):
-        return _zero_like(Op("mul", (a, b)))
+        return zero_like(Op("mul", (a, b)))
     if _is_one(a):
         return b
     if _is_one(b):

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from isaac_ir import expr as E
+from isaac_ir.derivative import derivative
 from isaac_ir import ir
 
 from ..core.rotation import quat_conjugate, quat_multiply, quat_to_matrix
@@ -183,9 +184,9 @@ def _add_instance(builder, term: ir.ConstraintTerm, index: dict, moving: list) -
     else:
         raise ValueError(f"unknown constraint family {family}")
     for name, value in values.items():
-        rate = E.derivative(value)
+        rate = derivative(value)
         moving.append(MovingParameter(family, instance, LAYOUT_NAME.get((family, name), name), value, rate,
-                                      E.derivative(rate)))
+                                      derivative(rate)))
     return instance
 
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from isaac_ir import expr as E
+from isaac_ir.derivative import derivative
 from isaac_ir import ir
 
 
@@ -33,10 +34,10 @@ def compile_kinematics(scene: ir.Scene) -> KinematicPaths | None:
     windows = np.array([b.path_window if getattr(b, "path_window", None) is not None else (-np.inf, np.inf)
                         for _, b in chosen], float).reshape(-1, 2)
     position = [b.position for _, b in chosen]
-    velocity = [E.derivative(p) for p in position]
+    velocity = [derivative(p) for p in position]
     orientation = [b.orientation for _, b in chosen]
-    rate = [E.derivative(q) for q in orientation]
-    acceleration, turning = [E.derivative(v) for v in velocity], [E.derivative(r) for r in rate]
+    rate = [derivative(q) for q in orientation]
+    acceleration, turning = [derivative(v) for v in velocity], [derivative(r) for r in rate]
     bodies = [b for _, b in chosen]
     return KinematicPaths(np.array([i for i, _ in chosen]), _guarded(position, bodies, "position"),
                           _guarded(velocity, bodies, "velocity"), _guarded(acceleration, bodies, "acceleration"),
